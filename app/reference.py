@@ -1,0 +1,390 @@
+"""The float64 reference: fiber placement and a brute-force nearest hit, in numpy.
+
+It is the judge of the shader. Every function here has a GLSL twin of the same name (in ``glsl/``), and the
+tests hold one against the other. The reference tests *every* fiber of every ring for every ray, so it is
+slow and simple on purpose.
+
+Geometry, in words (the GLSL files say the same thing in code):
+
+* A container segment has a local frame (ex, ey, ez), ez along its axis, and radius w(z) = r0 + kappa*z.
+* The projective map P' = P / w(z) turns the (possibly tapered) container into a unit cylinder and every
+  fiber into a straight vertical cylinder of radius ``fiber_radius``: lines stay lines and the order of
+  points along a ray is kept where w > 0, so the nearest hit in that "unit space" is the nearest hit.
+* Ring i (0 = outermost) is the annulus [1 - (i+1)/K, 1 - i/K] of unit space; its fibers sit at
+  angles rot_i + j * dphi_i, with radial and angular jitter bounded so that a fiber never leaves its
+  slot (thesis 3.5).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .params import Params
+from .scene.containers import Scene
+
+# Random-number channels: one independent number per purpose and fiber.
+CH_RADIAL, CH_ANGULAR, CH_LENGTH, CH_TINT, CH_ROUGH, CH_CURL, CH_RING = range(7)
+THESIS_LCG = 1207.523  # thesis expression 3.4
+
+
+# --------------------------------------------------------------------------------------------------
+# Random numbers (glsl/common/hash.glsl)
+# --------------------------------------------------------------------------------------------------
+def lowbias32(x):
+    """Chris Wellons' lowbias32 integer hash, on uint32 arrays (wrapping arithmetic as in GLSL)."""
+    x = np.asarray(x, dtype=np.uint32).copy()
+    with np.errstate(over="ignore"):
+        x ^= x >> np.uint32(16)
+        x *= np.uint32(0x7FEB352D)
+        x ^= x >> np.uint32(15)
+        x *= np.uint32(0x846CA68B)
+        x ^= x >> np.uint32(16)
+    return x
+
+
+def fiber_hash(seed, guide, ring, fiber, channel):
+    with np.errstate(over="ignore"):
+        h = lowbias32(np.uint32(seed) + np.uint32(0x9E3779B9))
+    for part in (guide, ring, fiber, channel):
+        h = lowbias32(h ^ np.asarray(part).astype(np.uint32))
+    return h
+
+
+def fiber_random(seed, guide, ring, fiber, channel):
+    """Uniform in [0, 1): 24 bits, exactly representable in float32 so GLSL and numpy agree bit for bit."""
+    return (fiber_hash(seed, guide, ring, fiber, channel) >> np.uint32(8)).astype(np.float64) / 16777216.0
+
+
+def thesis_random(slot_deg, ring, channel, dtype=np.float32):
+    """The thesis's LCG, fract(1207.523 * phi), phi the fiber's angular position in degrees.
+
+    Extended to several channels and rings by small offsets of phi. Evaluated in ``dtype``: float32 is what
+    a shader computes (and the source of its instability), float64 the ideal.
+    """
+    x = (np.asarray(slot_deg, dtype) + dtype(0.37) * np.asarray(channel, dtype)
+         + dtype(0.11) * np.asarray(ring, dtype))
+    y = dtype(THESIS_LCG) * x
+    return (y - np.floor(y)).astype(np.float64)
+
+
+# --------------------------------------------------------------------------------------------------
+# Ring layout (computed once per parameter set on the CPU, uploaded as uniforms)
+# --------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class RingLayout:
+    rings: int
+    rho: np.ndarray        # ring centre radius, unit space
+    n: np.ndarray          # fibers on the ring (int64)
+    dphi: np.ndarray       # angular slot width, radians
+    rot: np.ndarray        # ring rotation, radians
+    max_dr: np.ndarray     # largest radial offset actually used (jitter already applied)
+    max_dphi: np.ndarray   # largest angular offset actually used
+    reach: np.ndarray      # angular reach of a fiber about its slot angle: max_dphi + disc half-angle
+    fiber_radius: float
+    length_jitter: float
+    thesis_hash: bool
+    seed: int
+
+    @property
+    def first(self) -> np.ndarray:
+        """Index of each ring's first fiber in the container's flat fiber numbering."""
+        return np.concatenate([[0], np.cumsum(self.n)[:-1]])
+
+    @property
+    def fibers_per_container(self) -> int:
+        return int(self.n.sum())
+
+
+def ring_layout(p: Params) -> RingLayout:
+    K = p["fibers.rings"]
+    i = np.arange(K, dtype=np.float64)
+    rho = 1.0 - (i + 0.5) / K
+    half_width = 0.5 / K
+    step_deg = (p["fibers.phi_step"] + i * p["fibers.phi_increment"]) * (
+        1.0 + p["fibers.even_spacing"] * (rho[0] / rho - 1.0))
+    n = np.maximum(1, np.floor(360.0 / step_deg + 0.5)).astype(np.int64)
+    dphi = 2.0 * math.pi / n
+    thesis = p["fibers.hash"] == "thesis"
+    seed = p["fibers.seed"]
+    rot = np.zeros(K) if thesis else fiber_random(seed, 0, np.arange(K), 0, CH_RING) * dphi
+    rf = p["fibers.fiber_radius"]
+    max_dr = np.full(K, max(0.0, half_width - rf) * p["fibers.radial_jitter"])
+    rho_min = rho - max_dr
+    disc_half_angle = np.arcsin(np.minimum(1.0, rf / rho_min))
+    max_dphi = np.maximum(0.0, 0.5 * dphi - disc_half_angle) * p["fibers.angular_jitter"]
+    return RingLayout(K, rho, n, dphi, rot, max_dr, max_dphi, max_dphi + disc_half_angle, rf,
+                      p["fibers.length_jitter"], thesis, seed)
+
+
+def fiber_count(p: Params, n_containers: int = 1) -> tuple[float, int]:
+    """(thesis Expression 4.1, exact count) for ``n_containers`` containers.
+
+    Expression 4.1 sums 360/phi_step over the rings; the exact count is what is drawn, since a ring holds a
+    whole number of fibers (360/phi_step rounded to the nearest integer).
+    """
+    lay = ring_layout(p)
+    step = (p["fibers.phi_step"] + np.arange(lay.rings) * p["fibers.phi_increment"]) * (
+        1.0 + p["fibers.even_spacing"] * (lay.rho[0] / lay.rho - 1.0))
+    return float((360.0 / step).sum() * n_containers), int(lay.n.sum()) * n_containers
+
+
+def fiber_randoms(lay: RingLayout, guide, ring, j, channel):
+    """Per-fiber random number from the selected hash."""
+    if lay.thesis_hash:
+        slot_deg = np.degrees(lay.rot[ring] + j * lay.dphi[ring])
+        return thesis_random(slot_deg, ring, channel)
+    return fiber_random(lay.seed, guide, ring, j, channel)
+
+
+def fiber_center(lay: RingLayout, guide, ring, j):
+    """Unit-space centre (x, y) and end parameter v_end of fiber j on ring ``ring`` of guide ``guide``."""
+    ring = np.asarray(ring)
+    j = np.asarray(j)
+    ur = fiber_randoms(lay, guide, ring, j, CH_RADIAL)
+    ua = fiber_randoms(lay, guide, ring, j, CH_ANGULAR)
+    ul = fiber_randoms(lay, guide, ring, j, CH_LENGTH)
+    radius = lay.rho[ring] + (2.0 * ur - 1.0) * lay.max_dr[ring]
+    angle = lay.rot[ring] + j * lay.dphi[ring] + (2.0 * ua - 1.0) * lay.max_dphi[ring]
+    v_end = 1.0 - lay.length_jitter * ul
+    return radius * np.cos(angle), radius * np.sin(angle), v_end
+
+
+def all_fibers(lay: RingLayout, guide: int):
+    ring = np.repeat(np.arange(lay.rings), lay.n)
+    j = np.arange(lay.fibers_per_container) - np.repeat(lay.first, lay.n)
+    cx, cy, v_end = fiber_center(lay, guide, ring, j)
+    return ring, j, cx, cy, v_end
+
+
+# --------------------------------------------------------------------------------------------------
+# Container segment geometry (glsl/geometry/container.glsl)
+# --------------------------------------------------------------------------------------------------
+@dataclass
+class Segment:
+    p0: np.ndarray
+    ex: np.ndarray
+    ey: np.ndarray
+    ez: np.ndarray
+    h: float
+    r0: float
+    kappa: float           # dr/dz
+    n0: np.ndarray         # joint planes, local frame
+    n1: np.ndarray
+    v0: float
+    v1: float
+    guide: int
+    z_lo: float            # bounding slab (joint planes reach past the end points)
+    z_hi: float
+    r_bound: float
+
+
+def segment(row: np.ndarray) -> Segment:
+    row = row.astype(np.float64)
+    p0, r0, p1, r1 = row[0:3], row[3], row[4:7], row[7]
+    axis = p1 - p0
+    h = float(np.linalg.norm(axis))
+    ez = axis / h
+    ex = row[16:19] - ez * np.dot(row[16:19], ez)
+    ex /= np.linalg.norm(ex)
+    ey = np.cross(ez, ex)
+    frame = np.stack([ex, ey, ez])
+    n0, n1 = frame @ row[8:11], frame @ row[12:15]
+    r_bound = max(r0, r1)
+    z_lo = -r_bound * _slope(n0)
+    z_hi = h + r_bound * _slope(n1)
+    return Segment(p0, ex, ey, ez, h, r0, (r1 - r0) / h, n0, n1, row[11], row[15], int(row[19]),
+                   z_lo, z_hi, r_bound)
+
+
+def _slope(n: np.ndarray) -> float:
+    """How far a joint plane leans past the end point per unit of radius: tan of its tilt."""
+    c = abs(n[2])
+    return math.sqrt(max(0.0, 1.0 - c * c)) / max(c, 1e-6)
+
+
+def _slab(o, d, lo, hi):
+    """Ray interval inside lo <= o + t d <= hi (per ray; d may be 0)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ta, tb = (lo - o) / d, (hi - o) / d
+    t0 = np.where(d != 0, np.minimum(ta, tb), np.where((o >= lo) & (o <= hi), -np.inf, np.inf))
+    t1 = np.where(d != 0, np.maximum(ta, tb), np.where((o >= lo) & (o <= hi), np.inf, -np.inf))
+    return t0, t1
+
+
+def circle_interval(ox, oy, dx, dy, cx, cy, r):
+    """Ray interval inside the infinite vertical cylinder of radius r about (cx, cy).
+
+    Stable roots (pbrt's q = -(b + sign(b) sqrt(disc)), t0 = q/a, t1 = c/q) with a cancellation-free
+    discriminant a r^2 - cross^2 = (sqrt(a) r - |cross|)(sqrt(a) r + |cross|): a ray tilted 1e-7 from the
+    axis keeps its near root. A ray parallel to the axis (a = 0) is inside for all t or never.
+    """
+    ocx, ocy = ox - cx, oy - cy
+    a = dx * dx + dy * dy
+    b = ocx * dx + ocy * dy
+    c = (np.hypot(ocx, ocy) - r) * (np.hypot(ocx, ocy) + r)
+    cross = np.abs(ocx * dy - ocy * dx)
+    ra = np.sqrt(a) * r
+    disc = (ra - cross) * (ra + cross)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        q = -(b + np.where(b >= 0, 1.0, -1.0) * np.sqrt(np.maximum(disc, 0.0)))
+        t_a = q / a
+        t_b = np.where(q != 0, c / q, t_a)
+    par = a == 0
+    hit = np.where(par, c <= 0, disc >= 0)
+    t0 = np.where(par, -np.inf, np.minimum(t_a, t_b))
+    t1 = np.where(par, np.inf, np.maximum(t_a, t_b))
+    return np.where(hit, t0, np.inf), np.where(hit, t1, -np.inf)
+
+
+@dataclass
+class UnitRays:
+    """Rays of one segment in unit space: O + s D (D unit), valid over [s0, s1] (inside the container)."""
+    idx: np.ndarray        # which input rays
+    tb: np.ndarray         # world t of the unit-space origin
+    o: np.ndarray          # local-space origin (N,3) at tb
+    d: np.ndarray          # local-space unit direction
+    w_o: np.ndarray
+    O: np.ndarray
+    D: np.ndarray
+    D_len: np.ndarray
+    s0: np.ndarray
+    s1: np.ndarray
+
+
+def to_unit_space(seg: Segment, ro: np.ndarray, rd: np.ndarray, t_near: float = 0.0) -> UnitRays:
+    """Rays (world, relative to the same origin as the segment) that enter the segment's container."""
+    frame = np.stack([seg.ex, seg.ey, seg.ez])
+    o = (ro - seg.p0) @ frame.T
+    d = rd @ frame.T
+    # bounding cylinder and slab: cheap, conservative, and where w(z) > 0
+    c0, c1 = circle_interval(o[:, 0], o[:, 1], d[:, 0], d[:, 1], 0.0, 0.0, seg.r_bound * (1 + 1e-4))
+    z0, z1 = _slab(o[:, 2], d[:, 2], seg.z_lo, seg.z_hi)
+    tb0 = np.maximum(np.maximum(c0, z0), t_near)
+    tb1 = np.minimum(c1, z1)
+    keep = np.nonzero(tb0 <= tb1)[0]
+    o, d, tb0 = o[keep], d[keep], tb0[keep]
+    o = o + tb0[:, None] * d
+    w_o = seg.r0 + seg.kappa * o[:, 2]
+    O = o / w_o[:, None]
+    D = d * w_o[:, None] - o * (seg.kappa * d[:, 2])[:, None]
+    D_len = np.linalg.norm(D, axis=1)
+    D = D / D_len[:, None]
+    # the container in unit space: unit cylinder, root-side joint plane, tip-side joint plane
+    s0, s1 = circle_interval(O[:, 0], O[:, 1], D[:, 0], D[:, 1], 0.0, 0.0, 1.0)
+    s0 = np.maximum(s0, 0.0)
+    for m, c in ((-seg.r0 * seg.n0, 0.0),
+                 (seg.r0 * seg.n1 + seg.n1[2] * seg.h * seg.kappa * np.array([0, 0, 1.0]), seg.n1[2] * seg.h)):
+        # half-space m . P' <= c
+        mo, md = O @ m - c, D @ m
+        with np.errstate(divide="ignore", invalid="ignore"):
+            tp = -mo / md
+        s0 = np.where(md < 0, np.maximum(s0, tp), s0)
+        s1 = np.where(md > 0, np.minimum(s1, tp), s1)
+        outside = (md == 0) & (mo > 0)
+        s1 = np.where(outside, -np.inf, s1)
+    return UnitRays(keep, tb0, o, d, w_o, O, D, D_len, s0, s1)
+
+
+def unit_to_world_t(seg: Segment, ur: UnitRays, s: np.ndarray, sel=slice(None)) -> np.ndarray:
+    """World ray parameter of the unit-space point O + s D (the projective map inverted)."""
+    sigma = s / ur.D_len[sel]            # parameter along the unnormalised direction
+    w_o = ur.w_o[sel]
+    dz = ur.d[sel, 2]
+    return ur.tb[sel] + sigma * w_o * w_o / (1.0 - sigma * w_o * seg.kappa * dz)
+
+
+def z_cut_unit(seg: Segment, v_end):
+    """Unit-space height where a fiber that ends at guide parameter v_end stops (inf: past this segment)."""
+    z = (v_end - seg.v0) / (seg.v1 - seg.v0) * seg.h
+    zc = z / (seg.r0 + seg.kappa * z)
+    return np.where(v_end >= seg.v1, np.inf, np.where(v_end <= seg.v0, -np.inf, zc))
+
+
+# --------------------------------------------------------------------------------------------------
+# Brute-force nearest hit
+# --------------------------------------------------------------------------------------------------
+@dataclass
+class Hits:
+    t: np.ndarray          # world distance along the ray, inf on a miss
+    guide: np.ndarray      # -1 on a miss
+    segment: np.ndarray
+    ring: np.ndarray
+    fiber: np.ndarray
+
+    @property
+    def hit(self) -> np.ndarray:
+        return self.guide >= 0
+
+
+def brute_nearest(scene: Scene, p: Params, ro: np.ndarray, rd: np.ndarray, t_near: float = 0.0,
+                  chunk: int = 4_000_000) -> Hits:
+    """Nearest fiber hit for each ray (ro, rd world float64; rd unit). Tests every fiber of every ring."""
+    ro = np.asarray(ro, np.float64).reshape(-1, 3) - scene.origin
+    rd = np.asarray(rd, np.float64).reshape(-1, 3)
+    n = len(ro)
+    out = Hits(np.full(n, np.inf), np.full(n, -1), np.full(n, -1), np.full(n, -1), np.full(n, -1))
+    lay = ring_layout(p)
+    rf = lay.fiber_radius
+    fibers_cache: dict[int, tuple] = {}
+    for si, row in enumerate(scene.segments):
+        seg = segment(row)
+        ur = to_unit_space(seg, ro, rd, t_near)
+        live = np.nonzero(ur.s0 <= ur.s1)[0]
+        if not len(live) or rf <= 0:
+            continue
+        if seg.guide not in fibers_cache:
+            fibers_cache[seg.guide] = all_fibers(lay, seg.guide)
+        ring, j, cx, cy, v_end = fibers_cache[seg.guide]
+        zc = z_cut_unit(seg, v_end)
+        step = max(1, chunk // max(1, len(cx)))
+        for a in range(0, len(live), step):
+            sel = live[a:a + step]
+            O, D = ur.O[sel], ur.D[sel]
+            c0, c1 = circle_interval(O[:, :1], O[:, 1:2], D[:, :1], D[:, 1:2], cx[None], cy[None], rf)
+            z0, z1 = _slab(O[:, 2:3], D[:, 2:3], -np.inf, zc[None])
+            s_in = np.maximum(np.maximum(c0, z0), ur.s0[sel, None])
+            s_out = np.minimum(np.minimum(c1, z1), ur.s1[sel, None])
+            s_in = np.where(s_in <= s_out, s_in, np.inf)
+            best = np.argmin(s_in, axis=1)
+            s_best = s_in[np.arange(len(sel)), best]
+            ok = np.isfinite(s_best)
+            if not ok.any():
+                continue
+            rows = sel[ok]
+            t = unit_to_world_t(seg, ur, s_best[ok], rows)
+            ray = ur.idx[rows]
+            closer = t < out.t[ray]
+            ray, t, b = ray[closer], t[closer], best[ok][closer]
+            out.t[ray] = t
+            out.guide[ray] = seg.guide
+            out.segment[ray] = si
+            out.ring[ray] = ring[b]
+            out.fiber[ray] = j[b]
+    return out
+
+
+def rings_crossed(scene: Scene, p: Params, ro, rd, t_near: float = 0.0) -> np.ndarray:
+    """Per ray, the number of ring annuli its path through the containers touches, summed over containers:
+    the floor of fiber tests that a traversal visiting one fiber per ring piece could reach."""
+    ro = np.asarray(ro, np.float64).reshape(-1, 3) - scene.origin
+    rd = np.asarray(rd, np.float64).reshape(-1, 3)
+    K = p["fibers.rings"]
+    count = np.zeros(len(ro), np.int64)
+    for row in scene.segments:
+        seg = segment(row)
+        ur = to_unit_space(seg, ro, rd, t_near)
+        live = ur.s0 <= ur.s1
+        # closest approach of the track to the axis inside [s0, s1]
+        Dxy = ur.D[:, :2]
+        a = (Dxy ** 2).sum(1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s_star = np.where(a > 0, -(ur.O[:, :2] * Dxy).sum(1) / a, ur.s0)
+        s_star = np.clip(s_star, ur.s0, np.maximum(ur.s0, ur.s1))
+        pts = ur.O[:, :2] + s_star[:, None] * Dxy
+        r_min = np.sqrt((pts ** 2).sum(1))
+        deepest = np.minimum(K - 1, np.floor((1.0 - r_min) * K)).astype(np.int64)
+        np.add.at(count, ur.idx[live], deepest[live] + 1)
+    return count

@@ -1,0 +1,246 @@
+"""The virtual-fiber renderer: container proxies + the traversal shader + offscreen targets.
+
+One renderer serves the command line, the viewer, the tests and the benchmarks. It never imports glfw: it
+draws into whatever moderngl context it is given.
+
+Per frame it draws every container segment once as an instanced oriented box; the fragment shader does the
+rest. Outputs (all read back top row first):
+
+    color  (H, W, 3) uint8    shaded, tone-mapped sRGB
+    ids    (H, W, 4) uint32   guide + 1 (0 = no fiber), ring, fiber, segment
+    geom   (H, W, 4) float32  world normal xyz, distance along the ray (0 on a miss)
+    cost   (H, W, 4) float32  fiber tests, arcs visited, container fragments, loop iterations (summed over
+                              every container the pixel's ray enters: the work actually done)
+    iters  (H, W)    float32  the most loop iterations any single shader invocation ran
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import moderngl
+import numpy as np
+
+from .. import reference
+from ..gl.shaders import ProgramCache
+from ..params import Params
+from ..scene.containers import SEGMENT_BYTES, Scene
+from .camera import Camera
+
+MAX_RINGS = 64
+LOOP_CAP = 65_535                 # llvmpipe ends a shader's loops silently after this many iterations
+BRUTE_CHUNK = 60_000              # fibers per brute-force draw: stays under LOOP_CAP with 64 rings
+MODES = {"fast": 0, "exact": 1, "brute": 2}
+
+# A unit cube as 12 triangles, wound counter-clockwise seen from outside.
+_CUBE = np.array([
+    [-1, -1, -1], [-1, 1, -1], [1, 1, -1], [-1, -1, -1], [1, 1, -1], [1, -1, -1],
+    [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, -1, 1], [1, 1, 1], [-1, 1, 1],
+    [-1, -1, -1], [1, -1, -1], [1, -1, 1], [-1, -1, -1], [1, -1, 1], [-1, -1, 1],
+    [-1, 1, -1], [-1, 1, 1], [1, 1, 1], [-1, 1, -1], [1, 1, 1], [1, 1, -1],
+    [-1, -1, -1], [-1, -1, 1], [-1, 1, 1], [-1, -1, -1], [-1, 1, 1], [-1, 1, -1],
+    [1, -1, -1], [1, 1, -1], [1, 1, 1], [1, -1, -1], [1, 1, 1], [1, -1, 1],
+], dtype=np.float32)
+
+
+@dataclass
+class Frame:
+    color: np.ndarray | None = None
+    ids: np.ndarray | None = None
+    geom: np.ndarray | None = None
+    cost: np.ndarray | None = None
+    iters: np.ndarray | None = None
+    draws: int = 0
+
+    @property
+    def hit(self) -> np.ndarray:
+        return self.ids[..., 0] > 0
+
+
+def light_direction(p: Params) -> np.ndarray:
+    az, el = math.radians(p["look.light_azimuth"]), math.radians(p["look.light_elevation"])
+    return np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+
+
+class Renderer:
+    def __init__(self, ctx: moderngl.Context, programs: ProgramCache | None = None):
+        self.ctx = ctx
+        self.programs = programs or ProgramCache()
+        self.scene: Scene | None = None
+        self._cube = ctx.buffer(_CUBE.tobytes())
+        self._instances: moderngl.Buffer | None = None
+        self._vaos: dict[int, moderngl.VertexArray] = {}
+        self._targets: dict[tuple, moderngl.Framebuffer] = {}
+
+    # --- scene -------------------------------------------------------------------------------------
+    def set_scene(self, scene: Scene) -> None:
+        """Upload the containers once. Nothing here depends on how many fibers are drawn."""
+        if self._instances is not None:
+            self._instances.release()
+        for vao in self._vaos.values():
+            vao.release()
+        self._vaos.clear()
+        self.scene = scene
+        self._instances = self.ctx.buffer(scene.segments.tobytes())
+
+    @property
+    def scene_gpu_bytes(self) -> int:
+        """Bytes of GPU buffers that hold the scene: container segments plus the shared proxy cube."""
+        return (self._instances.size if self._instances else 0) + self._cube.size
+
+    def _vao(self, program: moderngl.Program) -> moderngl.VertexArray:
+        key = id(program)
+        if key not in self._vaos:
+            self._vaos[key] = self.ctx.vertex_array(program, [
+                (self._cube, "3f", "in_corner"),
+                (self._instances, "4f 4f 4f 4f 4f/i", "in_a", "in_b", "in_c", "in_d", "in_e"),
+            ])
+        return self._vaos[key]
+
+    # --- targets -----------------------------------------------------------------------------------
+    def _target(self, size: tuple[int, int], cost: bool) -> moderngl.Framebuffer:
+        key = (size, cost)
+        if key not in self._targets:
+            if cost:
+                att = [self.ctx.texture(size, 4, dtype="f4")]
+                self._targets[key] = self.ctx.framebuffer(att)
+            else:
+                att = [self.ctx.texture(size, 4, dtype="f1"), self.ctx.texture(size, 4, dtype="u4"),
+                       self.ctx.texture(size, 4, dtype="f4")]
+                self._targets[key] = self.ctx.framebuffer(att, self.ctx.depth_renderbuffer(size))
+        return self._targets[key]
+
+    def release_targets(self) -> None:
+        for fbo in self._targets.values():
+            for a in fbo.color_attachments:
+                a.release()
+            if fbo.depth_attachment:
+                fbo.depth_attachment.release()
+            fbo.release()
+        self._targets.clear()
+
+    # --- drawing -----------------------------------------------------------------------------------
+    def program(self, p: Params, mode: str, cost: bool) -> moderngl.Program:
+        defines = {"TRAVERSAL": MODES[mode], "MAX_RINGS": MAX_RINGS,
+                   "HASH_THESIS": int(p["fibers.hash"] == "thesis"), "COST_PASS": int(cost)}
+        return self.programs.get(self.ctx, "stages/container.vert", "stages/container.frag", defines)
+
+    def _set_uniforms(self, prog: moderngl.Program, p: Params, cam: Camera, size, offset) -> None:
+        lay = reference.ring_layout(p)
+        K = lay.rings
+        ring_a = np.zeros((MAX_RINGS, 4), np.float32)
+        ring_b = np.zeros((MAX_RINGS, 4), np.float32)
+        ring_n = np.zeros((MAX_RINGS, 2), np.int32)
+        ring_a[:K] = np.stack([lay.rho, lay.dphi, lay.rot, lay.reach], 1)
+        ring_b[:K, 0], ring_b[:K, 1] = lay.max_dr, lay.max_dphi
+        ring_n[:K, 0], ring_n[:K, 1] = lay.n, lay.first
+        w, h = size
+        right, up, forward = cam.basis()
+        th = math.tan(math.radians(cam.fov) / 2)
+        values = {
+            "uRings": K, "uFiberRadius": lay.fiber_radius, "uLengthJitter": lay.length_jitter,
+            "uSeed": lay.seed, "uViewport": (w, h), "uPixelOffset": tuple(offset),
+            "uNear": cam.near, "uFar": cam.far,
+            "uCamRight": tuple(right * th * w / h), "uCamUp": tuple(up * th), "uCamForward": tuple(forward),
+            "uSceneFromCamera": tuple(self.scene.origin - cam.position),
+            "uLightDir": tuple(light_direction(p)), "uLightIntensity": p["look.light_intensity"],
+            "uAmbient": p["look.ambient"], "uBaseColor": p["look.color"], "uRoughness": p["look.roughness"],
+            "uTintVariation": p["look.tint_variation"], "uRoughnessVariation": p["look.roughness_variation"],
+            "uShadowDensity": p["look.shadow_density"] if p["look.self_shadow"] != "off" else 0.0,
+        }
+        for name, value in values.items():
+            if name in prog:
+                prog[name].value = value
+        for name, arr in (("uRingA", ring_a), ("uRingB", ring_b), ("uRingN", ring_n)):
+            if name in prog:
+                prog[name].write(arr.tobytes())
+        if "uClipFromCamera" in prog:
+            prog["uClipFromCamera"].write(cam.clip_from_camera(w / h).T.copy().tobytes())
+
+    def _draw(self, prog: moderngl.Program, p: Params, mode: str) -> int:
+        """Draw every container; brute mode draws each container's fibers in chunks. Returns draw count."""
+        vao = self._vao(prog)
+        if mode != "brute":
+            vao.render(moderngl.TRIANGLES, instances=self.scene.n_segments)
+            return 1
+        total = reference.ring_layout(p).fibers_per_container
+        draws = 0
+        for start in range(0, total, BRUTE_CHUNK):
+            prog["uBruteRange"].value = (start, min(total, start + BRUTE_CHUNK))
+            vao.render(moderngl.TRIANGLES, instances=self.scene.n_segments)
+            draws += 1
+        return draws
+
+    def render(self, p: Params, cam: Camera, size: tuple[int, int], *, outputs=("color",),
+               offset=(0.0, 0.0), mode: str | None = None) -> Frame:
+        """Render the scene. ``outputs`` is any of color, ids, geom, cost, iters."""
+        if self.scene is None:
+            raise RuntimeError("Renderer.render: call set_scene first")
+        mode = mode or p["quality.mode"]
+        ctx = self.ctx
+        frame = Frame()
+        size = (int(size[0]), int(size[1]))
+        ctx.disable(moderngl.BLEND)
+        ctx.enable(moderngl.CULL_FACE)
+        ctx.front_face = "ccw"
+        ctx.cull_face = "front"        # draw the far faces: the image stays whole with the camera inside a box
+        if {"color", "ids", "geom"} & set(outputs):
+            fbo = self._target(size, cost=False)
+            fbo.use()
+            ctx.viewport = (0, 0) + size
+            fbo.color_attachments[0].write(np.zeros(size[0] * size[1] * 4, np.uint8).tobytes())
+            fbo.color_attachments[1].write(np.zeros(size[0] * size[1] * 4, np.uint32).tobytes())
+            fbo.color_attachments[2].write(np.zeros(size[0] * size[1] * 4, np.float32).tobytes())
+            _clear_depth(fbo)
+            ctx.enable(moderngl.DEPTH_TEST)
+            ctx.depth_func = "<"
+            prog = self.program(p, mode, cost=False)
+            self._set_uniforms(prog, p, cam, size, offset)
+            frame.draws += self._draw(prog, p, mode)
+            if "color" in outputs:
+                rgba = _read(fbo, 0, 4, "f1", size)
+                bg = np.asarray(p["look.background"])
+                bg8 = np.round(np.clip(bg, 0, 1) ** (1 / 2.2) * 255).astype(np.uint8)
+                frame.color = np.where(rgba[..., 3:4] > 0, rgba[..., :3], bg8)
+            if "ids" in outputs:
+                frame.ids = _read(fbo, 1, 4, "u4", size)
+            if "geom" in outputs:
+                frame.geom = _read(fbo, 2, 4, "f4", size)
+        for kind in ("cost", "iters"):
+            if kind not in outputs:
+                continue
+            fbo = self._target(size, cost=True)
+            fbo.use()
+            ctx.viewport = (0, 0) + size
+            fbo.clear(0.0, 0.0, 0.0, 0.0)
+            ctx.disable(moderngl.DEPTH_TEST)
+            ctx.enable(moderngl.BLEND)
+            ctx.blend_func = moderngl.ONE, moderngl.ONE
+            ctx.blend_equation = moderngl.FUNC_ADD if kind == "cost" else moderngl.MAX
+            prog = self.program(p, mode, cost=True)
+            self._set_uniforms(prog, p, cam, size, offset)
+            frame.draws += self._draw(prog, p, mode)
+            data = _read(fbo, 0, 4, "f4", size)
+            if kind == "cost":
+                frame.cost = data
+            else:
+                frame.iters = data[..., 3]
+            ctx.blend_equation = moderngl.FUNC_ADD
+            ctx.disable(moderngl.BLEND)
+        return frame
+
+
+def _clear_depth(fbo: moderngl.Framebuffer) -> None:
+    # glClear on integer colour attachments is undefined, so mask colour off and clear depth alone
+    mask = fbo.color_mask
+    fbo.color_mask = tuple((False,) * 4 for _ in fbo.color_attachments)
+    fbo.clear(depth=1.0)
+    fbo.color_mask = mask
+
+
+def _read(fbo: moderngl.Framebuffer, attachment: int, components: int, dtype: str, size) -> np.ndarray:
+    w, h = size
+    np_dtype = {"f1": np.uint8, "u4": np.uint32, "f4": np.float32}[dtype]
+    raw = fbo.read(viewport=(0, 0, w, h), components=components, attachment=attachment, dtype=dtype)
+    return np.frombuffer(raw, np_dtype).reshape(h, w, components)[::-1].copy()

@@ -1,0 +1,36 @@
+// hash.glsl: per-fiber random numbers.
+//   uint  lowbias32(uint x)                        Chris Wellons' integer hash
+//   float fiber_random(uint seed, uint guide, uint ring, uint fiber, uint channel)   in [0, 1), 24 bits
+//   float thesis_random(float slotDeg, float ring, float channel)   fract(1207.523 * phi), thesis 3.4
+// fiber_random depends only on integers, so a fiber's numbers never change with the camera or with
+// float rounding; thesis_random is kept for fidelity to the thesis and measured against it.
+// Twin: app/reference.py (lowbias32, fiber_random, thesis_random).
+
+const uint CH_RADIAL = 0u;
+const uint CH_ANGULAR = 1u;
+const uint CH_LENGTH = 2u;
+const uint CH_TINT = 3u;
+const uint CH_ROUGH = 4u;
+const uint CH_CURL = 5u;
+
+uint lowbias32(uint x) {
+    x ^= x >> 16;
+    x *= 0x7feb352du;
+    x ^= x >> 15;
+    x *= 0x846ca68bu;
+    x ^= x >> 16;
+    return x;
+}
+
+float fiber_random(uint seed, uint guide, uint ring, uint fiber, uint channel) {
+    uint h = lowbias32(seed + 0x9e3779b9u);
+    h = lowbias32(h ^ guide);
+    h = lowbias32(h ^ ring);
+    h = lowbias32(h ^ fiber);
+    h = lowbias32(h ^ channel);
+    return float(h >> 8) * (1.0 / 16777216.0);
+}
+
+float thesis_random(float slotDeg, float ring, float channel) {
+    return fract(1207.523 * (slotDeg + 0.37 * channel + 0.11 * ring));
+}

@@ -1,0 +1,42 @@
+// layout.glsl: where virtual fibers sit inside a container (thesis 3.3-3.8, 4.3).
+//   void fiber_center(uint guide, int ring, int j, out vec2 c, out float vEnd)
+// Ring i (0 = outermost) is the annulus [1 - (i+1)/K, 1 - i/K] of unit space. Its n_i fibers sit at angles
+// rot_i + j dphi_i, pushed by a radial and an angular offset that are bounded per ring so that a fiber
+// never leaves its slot; vEnd is where along the guide (0 root .. 1 tip) the fiber stops.
+// The per-ring numbers are computed once on the CPU (app/reference.py: ring_layout) and arrive here.
+// Twin: app/reference.py (fiber_center).
+
+#include "common/hash.glsl"
+
+#ifndef MAX_RINGS
+#define MAX_RINGS 64
+#endif
+#ifndef HASH_THESIS
+#define HASH_THESIS 0
+#endif
+
+uniform int uRings;
+uniform vec4 uRingA[MAX_RINGS];    // rho, dphi, rot, reach (largest angular offset + disc half-angle)
+uniform vec4 uRingB[MAX_RINGS];    // maxDr, maxDphi, -, -
+uniform ivec2 uRingN[MAX_RINGS];   // fibers on the ring, index of its first fiber in the container
+uniform float uFiberRadius;
+uniform float uLengthJitter;
+uniform uint uSeed;
+
+float fiber_rand(uint guide, int ring, int j, uint channel) {
+#if HASH_THESIS
+    float slotDeg = degrees(uRingA[ring].z + float(j) * uRingA[ring].y);
+    return thesis_random(slotDeg, float(ring), float(channel));
+#else
+    return fiber_random(uSeed, guide, uint(ring), uint(j), channel);
+#endif
+}
+
+void fiber_center(uint guide, int ring, int j, out vec2 c, out float vEnd) {
+    vec4 A = uRingA[ring];
+    vec4 B = uRingB[ring];
+    float radius = A.x + (2.0 * fiber_rand(guide, ring, j, CH_RADIAL) - 1.0) * B.x;
+    float angle = A.z + float(j) * A.y + (2.0 * fiber_rand(guide, ring, j, CH_ANGULAR) - 1.0) * B.y;
+    c = radius * vec2(cos(angle), sin(angle));
+    vEnd = 1.0 - uLengthJitter * fiber_rand(guide, ring, j, CH_LENGTH);
+}

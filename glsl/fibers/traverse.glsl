@@ -1,0 +1,157 @@
+// traverse.glsl: find the fiber a ray hits inside one container segment (thesis chapter III, Appendix A).
+//   FiberHit traverse(Segment seg, UnitRay ur)
+// TRAVERSAL selects the mode:
+//   0 fast   the thesis's order, first hit wins: front arcs outer to inner, then the back arcs inner to
+//            outer from a fixed-size stack (3.11); within an arc, fibers in the order the ray meets them
+//            (Figure 16).
+//   1 exact  the same order, but every candidate of an arc is tested and traversal stops only when the
+//            next arc starts beyond the nearest hit so far: returns the nearest fiber.
+//   2 brute  tests every fiber of every ring in [uBruteRange.x, uBruteRange.y) of the container's flat
+//            fiber numbering; the renderer splits a container's fibers into chunks (one draw each) so no
+//            invocation passes llvmpipe's 65,535 loop iterations; the depth test keeps the nearest.
+// An "arc" is the stretch of the ray's path (in the unit-space xy plane) inside one ring's annulus. The
+// path crosses a ring twice (front and back arc) or, for the deepest ring it reaches, once; that stretch is
+// split at the point closest to the axis so each piece sweeps less than 90 degrees. Only fibers whose slot
+// angle lies within the piece's angles widened by the ring's reach can be hit; no other fiber is tested.
+// Counters: gTests (fiber tests), gPieces (arcs visited), gIters (loop iterations, all loops).
+
+#include "fibers/layout.glsl"
+#include "geometry/container.glsl"
+
+#ifndef TRAVERSAL
+#define TRAVERSAL 1
+#endif
+
+struct FiberHit {
+    float s;        // unit-space parameter, INF on a miss
+    int ring;
+    int fiber;
+    int kind;       // 0 fiber side, 1 fiber tip (length cut), 2 container boundary (cap or joint)
+    vec2 c;         // fiber centre in unit space
+};
+
+int gTests = 0;
+int gPieces = 0;
+int gIters = 0;
+uniform ivec2 uBruteRange;
+
+FiberHit no_hit() {
+    FiberHit h;
+    h.s = INF;
+    h.ring = -1;
+    h.fiber = -1;
+    h.kind = 0;
+    h.c = vec2(0.0);
+    return h;
+}
+
+// One fiber: a capped vertical cylinder of radius uFiberRadius about c, from the container's root plane
+// to the fiber's length cut, inside the container interval. Returns the entry parameter or INF.
+float fiber_test(Segment seg, UnitRay ur, vec2 c, float vEnd, out int kind) {
+    gTests++;
+    kind = 0;
+    float zc = z_cut_unit(seg, vEnd);
+    if (zc == -INF) return INF;
+    vec2 cyl = circle_interval(ur.O.xy, ur.D.xy, c, uFiberRadius);
+    vec2 z = slab(ur.O.z, ur.D.z, -INF, zc);
+    float sIn = max(max(cyl.x, z.x), ur.s0);
+    float sOut = min(min(cyl.y, z.y), ur.s1);
+    if (!(sIn <= sOut)) return INF;
+    kind = sIn == cyl.x ? 0 : (sIn == z.x ? 1 : 2);
+    return sIn;
+}
+
+void test_fiber(Segment seg, UnitRay ur, int ring, int j, inout FiberHit best) {
+    vec2 c;
+    float vEnd;
+    fiber_center(seg.guide, ring, j, c, vEnd);
+    int kind;
+    float s = fiber_test(seg, ur, c, vEnd, kind);
+    if (s < best.s) {
+        best.s = s;
+        best.ring = ring;
+        best.fiber = j;
+        best.kind = kind;
+        best.c = c;
+    }
+}
+
+float wrap_pi(float a) {
+    return a - 6.28318530718 * floor((a + 3.14159265359) / 6.28318530718);
+}
+
+// Test the candidates of ring i on the piece [sA, sB] of the ray. Returns true when traversal is over.
+bool visit_piece(Segment seg, UnitRay ur, int i, float sA, float sB, inout FiberHit best) {
+    sA = max(sA, ur.s0);
+    sB = min(sB, ur.s1);
+    if (!(sA <= sB)) return false;          // this stretch lies outside the container (caps, joints)
+    if (sA >= best.s) return true;          // pieces come in ray order: nothing later can be nearer
+    gPieces++;
+    vec2 pA = ur.O.xy + sA * ur.D.xy;
+    vec2 pB = ur.O.xy + sB * ur.D.xy;
+    // a piece can touch the axis only at one end (a ray through the axis); take the other end's angle
+    float thA = dot(pA, pA) > 0.0 ? atan(pA.y, pA.x) : atan(pB.y, pB.x);
+    float thB = dot(pB, pB) > 0.0 ? atan(pB.y, pB.x) : thA;
+    float span = wrap_pi(thB - thA);
+    vec4 ring = uRingA[i];
+    float reach = ring.w + EPS_ANGLE;
+    int n = uRingN[i].x;
+    int dir = span >= 0.0 ? 1 : -1;
+    float first = (thA - float(dir) * reach - ring.z) / ring.y;
+    float last = (thA + span + float(dir) * reach - ring.z) / ring.y;
+    int j0 = dir > 0 ? int(ceil(first)) : int(floor(first));
+    int j1 = dir > 0 ? int(floor(last)) : int(ceil(last));
+    int count = min(max(0, (j1 - j0) * dir + 1), n);
+    for (int k = 0; k < count; k++) {
+        gIters++;
+        int j = j0 + k * dir;
+        j -= n * int(floor(float(j) / float(n)));   // into [0, n)
+        test_fiber(seg, ur, i, j, best);
+#if TRAVERSAL == 0
+        if (best.s < INF) return true;      // fast: the first fiber found wins
+#endif
+    }
+    return false;
+}
+
+FiberHit traverse(Segment seg, UnitRay ur) {
+    FiberHit best = no_hit();
+    int K = uRings;
+#if TRAVERSAL == 2
+    for (int i = 0; i < K; i++) {
+        gIters++;
+        ivec2 nf = uRingN[i];
+        int jBegin = max(0, uBruteRange.x - nf.y);
+        int jEnd = min(nf.x, uBruteRange.y - nf.y);
+        for (int j = jBegin; j < jEnd; j++) {
+            gIters++;
+            test_fiber(seg, ur, i, j, best);
+        }
+    }
+    return best;
+#else
+    vec2 o2 = ur.O.xy;
+    vec2 d2 = ur.D.xy;
+    float a = dot(d2, d2);
+    vec2 backStack[MAX_RINGS];              // thesis 3.11: back arcs, pushed outer to inner
+    vec2 outer = circle_interval(o2, d2, vec2(0.0), 1.0);
+    int deepest = K - 1;
+    for (int i = 0; i < K - 1; i++) {
+        gIters++;
+        vec2 inner = circle_interval(o2, d2, vec2(0.0), 1.0 - float(i + 1) / float(K));
+        if (inner.x > inner.y) { deepest = i; break; }   // the path stays in this ring: deepest reached
+        if (visit_piece(seg, ur, i, outer.x, inner.x, best)) return best;
+        backStack[i] = vec2(inner.y, outer.y);
+        outer = inner;
+    }
+    // deepest ring: one stretch, split where the path comes closest to the axis
+    float sMid = a > 0.0 ? -dot(o2, d2) / a : ur.s0;
+    if (visit_piece(seg, ur, deepest, outer.x, sMid, best)) return best;
+    if (visit_piece(seg, ur, deepest, sMid, outer.y, best)) return best;
+    for (int i = deepest - 1; i >= 0; i--) {
+        gIters++;
+        if (visit_piece(seg, ur, i, backStack[i].x, backStack[i].y, best)) return best;
+    }
+    return best;
+#endif
+}

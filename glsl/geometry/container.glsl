@@ -1,0 +1,116 @@
+// container.glsl: a container segment (hair cylinder) and the projective "unit space" inside it.
+//   Segment  make_segment(vec4 a, vec4 b, vec4 c, vec4 d, vec4 e)      from the per-instance attributes
+//   bool     to_unit_space(Segment seg, vec3 ro, vec3 rd, float tNear, out UnitRay ur)
+//   float    unit_to_world_t(Segment seg, UnitRay ur, float s)
+//   float    z_cut_unit(Segment seg, float vEnd)
+// Unit space: P' = P_local / w(z), w(z) = r0 + kappa z. It maps the (tapered) container to the unit
+// cylinder and every fiber to a vertical cylinder of radius fiber_radius; lines stay lines and order
+// along a ray is kept while w > 0, so the nearest hit there is the nearest hit in the world.
+// Twin: app/reference.py (segment, to_unit_space, unit_to_world_t, z_cut_unit).
+
+#include "geometry/intervals.glsl"
+
+struct Segment {
+    vec3 p0;            // camera-relative
+    vec3 ex, ey, ez;    // local frame, ez along the axis
+    float h;            // axis length
+    float r0;
+    float kappa;        // dr/dz (taper)
+    vec3 n0, n1;        // joint planes in the local frame
+    float v0, v1;       // guide parameter (0 root .. 1 tip) at the ends
+    uint guide;
+    float zLo, zHi;     // bounding slab: joint planes lean past the end points
+    float rBound;
+};
+
+struct UnitRay {
+    float tb;           // world t of the unit-space origin
+    vec3 o;             // local origin at tb
+    vec3 d;             // local unit direction
+    float wO;           // w(o.z)
+    vec3 O;             // unit-space origin
+    vec3 D;             // unit-space unit direction
+    float Dlen;         // length of the direction before normalisation
+    float s0, s1;       // inside the container
+};
+
+// How far a joint plane leans past the end point per unit of radius (tan of its tilt).
+float joint_slope(vec3 n) {
+    float c = abs(n.z);
+    return sqrt(max(0.0, 1.0 - c * c)) / max(c, 1e-6);
+}
+
+Segment make_segment(vec4 a, vec4 b, vec4 c, vec4 d, vec4 e) {
+    Segment s;
+    s.p0 = a.xyz;
+    vec3 axis = b.xyz - a.xyz;
+    s.h = length(axis);
+    s.ez = axis / s.h;
+    s.ex = normalize(e.xyz - s.ez * dot(e.xyz, s.ez));
+    s.ey = cross(s.ez, s.ex);
+    mat3 localFromWorld = transpose(mat3(s.ex, s.ey, s.ez));
+    s.n0 = localFromWorld * c.xyz;
+    s.n1 = localFromWorld * d.xyz;
+    s.r0 = a.w;
+    s.kappa = (b.w - a.w) / s.h;
+    s.v0 = c.w;
+    s.v1 = d.w;
+    s.guide = uint(e.w);
+    s.rBound = max(a.w, b.w);
+    s.zLo = -s.rBound * joint_slope(s.n0);
+    s.zHi = s.h + s.rBound * joint_slope(s.n1);
+    return s;
+}
+
+// Clip [s0, s1] to the half-space m . P <= c.
+void clip_half_space(vec3 O, vec3 D, vec3 m, float c, inout float s0, inout float s1) {
+    float mo = dot(O, m) - c;
+    float md = dot(D, m);
+    if (md == 0.0) {
+        if (mo > 0.0) s1 = -INF;
+        return;
+    }
+    float tp = -mo / md;
+    if (md < 0.0) s0 = max(s0, tp); else s1 = min(s1, tp);
+}
+
+bool to_unit_space(Segment seg, vec3 ro, vec3 rd, float tNear, out UnitRay ur) {
+    mat3 localFromWorld = transpose(mat3(seg.ex, seg.ey, seg.ez));
+    vec3 o = localFromWorld * (ro - seg.p0);
+    vec3 d = localFromWorld * rd;
+    // Bounding cylinder and slab first: cheap, conservative, and a region where w(z) > 0. Moving the
+    // origin to its entry keeps every later solve near the primitive (small numbers, no cancellation).
+    vec2 c = circle_interval(o.xy, d.xy, vec2(0.0), seg.rBound * (1.0 + EPS_BOUND));
+    vec2 z = slab(o.z, d.z, seg.zLo, seg.zHi);
+    float tb0 = max(max(c.x, z.x), tNear);
+    float tb1 = min(c.y, z.y);
+    if (!(tb0 <= tb1)) return false;
+    ur.tb = tb0;
+    ur.o = o + tb0 * d;
+    ur.d = d;
+    ur.wO = seg.r0 + seg.kappa * ur.o.z;
+    ur.O = ur.o / ur.wO;
+    vec3 D = d * ur.wO - ur.o * (seg.kappa * d.z);
+    ur.Dlen = length(D);
+    ur.D = D / ur.Dlen;
+    // The container in unit space: unit cylinder, root-side joint plane, tip-side joint plane.
+    vec2 cyl = circle_interval(ur.O.xy, ur.D.xy, vec2(0.0), 1.0);
+    ur.s0 = max(cyl.x, 0.0);
+    ur.s1 = cyl.y;
+    clip_half_space(ur.O, ur.D, -seg.r0 * seg.n0, 0.0, ur.s0, ur.s1);
+    clip_half_space(ur.O, ur.D, seg.r0 * seg.n1 + vec3(0.0, 0.0, seg.n1.z * seg.h * seg.kappa),
+                    seg.n1.z * seg.h, ur.s0, ur.s1);
+    return ur.s0 <= ur.s1;
+}
+
+float unit_to_world_t(Segment seg, UnitRay ur, float s) {
+    float sigma = s / ur.Dlen;
+    return ur.tb + sigma * ur.wO * ur.wO / (1.0 - sigma * ur.wO * seg.kappa * ur.d.z);
+}
+
+float z_cut_unit(Segment seg, float vEnd) {
+    if (vEnd >= seg.v1) return INF;
+    if (vEnd <= seg.v0) return -INF;
+    float z = (vEnd - seg.v0) / (seg.v1 - seg.v0) * seg.h;
+    return z / (seg.r0 + seg.kappa * z);
+}
