@@ -62,7 +62,7 @@ class Param:
     def check(self, value: Any) -> Any:
         """Return the value coerced to this parameter's type, or raise ParamError."""
         bad = lambda why="": ParamError(  # noqa: E731
-            f"{self.key} = {value!r} is not allowed{why}: expected {self.allowed()}", key=self.key)
+            f"{self.key} = {short_repr(value)} is not allowed{why}: expected {self.allowed()}", key=self.key)
         if self.kind is bool:
             if isinstance(value, bool):
                 return value
@@ -89,7 +89,10 @@ class Param:
                     raise bad()
                 value = int(value)
         else:
-            value = float(value)
+            try:
+                value = float(value)
+            except OverflowError:  # an integer too large for a float
+                raise bad(" (out of range)") from None
             if not math.isfinite(value):
                 raise bad(" (not finite)")
         if (self.lo is not None and value < self.lo) or (self.hi is not None and value > self.hi):
@@ -97,9 +100,17 @@ class Param:
         return value
 
 
+def short_repr(value: Any, limit: int = 60) -> str:
+    """repr() cut to a readable length: a 400-digit number in a message helps nobody."""
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit] + "..."
+
+
 def _fmt(x: float | None) -> str:
     if x is None:
         return "-inf"
+    if float(x).is_integer() and abs(x) < 1e15:
+        return str(int(x))  # 2147483647, not 2.14748e+09
     return f"{x:g}"
 
 

@@ -31,7 +31,6 @@ import importlib.resources
 import os
 import re
 import sys
-import tempfile
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
@@ -39,6 +38,7 @@ from typing import Any, Callable, Iterable
 
 import tomli_w
 
+from app.atomic import atomic_write_text
 from app.params import BY_KEY, GROUPS, SPEC, Param, ParamError, Params, max_fiber_radius, suggest
 
 PRESET_VERSION = 2
@@ -288,16 +288,7 @@ def _collect(doc: dict[str, Any]) -> tuple[dict[str, Any], list[tuple[str, str]]
 
 
 def _check(p: Param, value: Any) -> Any:
-    try:
-        return p.check(value)
-    except OverflowError:  # an integer beyond float range for a float parameter (TOML allows 64 bits)
-        raise ParamError(f"{p.key} = {_short(value)} is not allowed (out of range): expected {p.allowed()}",
-                         key=p.key) from None
-    except ParamError as e:
-        if len(repr(value)) > _SHORT:  # Param.check quotes the whole value; keep the message readable
-            raise ParamError(f"{p.key} = {_short(value)} is not allowed: expected {p.allowed()}",
-                             key=p.key) from None
-        raise
+    return p.check(value)
 
 
 def _unknown_top(top: str, item: Any) -> str:
@@ -367,43 +358,7 @@ def save_preset(path: str | os.PathLike[str], params: Params, name: str = "",
                 description: str = "") -> Path:
     """Write atomically: a crash or a full disk leaves either the old file or the new one, never half of
     one (a temporary file beside the target is fsynced, then renamed over it)."""
-    path = Path(path)
-    text = dumps_preset(params, name, description)
-    directory = path.parent if str(path.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(dir=directory, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        try:  # mkstemp makes 0600; keep the old file's mode, or a normal one
-            os.chmod(tmp, path.stat().st_mode & 0o7777 if path.exists() else 0o644)
-        except OSError:
-            pass
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    _fsync_dir(directory)  # make the rename itself durable
-    return path
-
-
-def _fsync_dir(directory: Path) -> None:
-    if not hasattr(os, "O_DIRECTORY"):  # Windows cannot open a directory; its rename is durable enough
-        return
-    try:
-        fd = os.open(directory, os.O_RDONLY | os.O_DIRECTORY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
+    return atomic_write_text(path, dumps_preset(params, name, description))
 
 
 # --------------------------------------------------------------------------------------------------

@@ -475,23 +475,13 @@ def test_atomic_save_keeps_old_file_on_failure(tmp_path: Path, monkeypatch: pyte
 def test_atomic_save_survives_interrupt_in_writer(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     path = save_preset(tmp_path / "look.toml", Params(), name="old")
     before = path.read_bytes()
-    real_fdopen = os.fdopen
+    real_write_text = Path.write_text
 
-    class HalfWriter:
-        def __init__(self, f: Any):
-            self.f = f
+    def half_write(self: Path, text: str, *args: Any, **kwargs: Any) -> int:
+        real_write_text(self, text[:50], *args, **kwargs)
+        raise KeyboardInterrupt  # Ctrl-C halfway through the write
 
-        def __enter__(self) -> "HalfWriter":
-            return self
-
-        def __exit__(self, *exc: Any) -> None:
-            self.f.close()
-
-        def write(self, text: str) -> None:
-            self.f.write(text[:50])
-            raise KeyboardInterrupt  # Ctrl-C halfway through the write
-
-    monkeypatch.setattr(os, "fdopen", lambda *a, **k: HalfWriter(real_fdopen(*a, **k)))
+    monkeypatch.setattr(Path, "write_text", half_write)
     with pytest.raises(KeyboardInterrupt):
         save_preset(path, Params({"fibers.rings": 6}))
     assert path.read_bytes() == before

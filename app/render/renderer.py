@@ -72,6 +72,7 @@ class Renderer:
         self._instances: moderngl.Buffer | None = None
         self._vaos: dict[int, moderngl.VertexArray] = {}
         self._targets: dict[tuple, moderngl.Framebuffer] = {}
+        self._parking = ctx.framebuffer(ctx.renderbuffer((1, 1)))   # bound while targets are released
 
     # --- scene -------------------------------------------------------------------------------------
     def set_scene(self, scene: Scene) -> None:
@@ -88,6 +89,24 @@ class Renderer:
     def scene_gpu_bytes(self) -> int:
         """Bytes of GPU buffers that hold the scene: container segments plus the shared proxy cube."""
         return (self._instances.size if self._instances else 0) + self._cube.size
+
+    def render_quality(self, p: Params, cam: Camera, size: tuple[int, int], *, outputs=("color",),
+                       mode: str | None = None) -> Frame:
+        """Render honouring the quality parameters: ``render_scale`` (cast fewer rays, scale the picture
+        up) and ``supersample`` (average n x n stratified rays per pixel for colour; ids, geometry and cost
+        come from the centre ray)."""
+        scale = p["quality.render_scale"]
+        inner = (max(1, round(size[0] * scale)), max(1, round(size[1] * scale)))
+        n = p["quality.supersample"]
+        frame = self.render(p, cam, inner, outputs=outputs, mode=mode)
+        if n > 1 and "color" in outputs:
+            acc = np.zeros(frame.color.shape, np.float64)
+            for offset in supersample_offsets(n):
+                acc += self.render(p, cam, inner, outputs=("color",), offset=offset, mode=mode).color
+            frame.color = np.round(acc / (n * n)).astype(np.uint8)
+        if inner != tuple(size):
+            frame = _upscale(frame, size)
+        return frame
 
     def _vao(self, program: moderngl.Program) -> moderngl.VertexArray:
         key = id(program)
@@ -112,6 +131,9 @@ class Renderer:
         return self._targets[key]
 
     def release_targets(self) -> None:
+        # bind a live framebuffer first: moderngl restores the previous binding after creating a
+        # framebuffer, and rebinding a released one is an invalid operation
+        self._parking.use()
         for fbo in self._targets.values():
             for a in fbo.color_attachments:
                 a.release()
@@ -231,12 +253,39 @@ class Renderer:
         return frame
 
 
+def scene_gpu_bytes(scene: Scene) -> int:
+    """What ``Renderer.set_scene`` allocates for ``scene``: the segments plus the shared proxy cube."""
+    return scene.nbytes + _CUBE.nbytes
+
+
+def supersample_offsets(n: int) -> list[tuple[float, float]]:
+    """n x n stratified sub-pixel offsets (pixel units, about the pixel centre)."""
+    return [((i + 0.5) / n - 0.5, (j + 0.5) / n - 0.5) for j in range(n) for i in range(n)]
+
+
 def _clear_depth(fbo: moderngl.Framebuffer) -> None:
     # glClear on integer colour attachments is undefined, so mask colour off and clear depth alone
     mask = fbo.color_mask
     fbo.color_mask = tuple((False,) * 4 for _ in fbo.color_attachments)
     fbo.clear(depth=1.0)
     fbo.color_mask = mask
+
+
+def _upscale(frame: Frame, size: tuple[int, int]) -> Frame:
+    """Scale a reduced-resolution frame up: colour smoothly, everything else by nearest pixel."""
+    from PIL import Image
+
+    w, h = size
+    out = Frame(draws=frame.draws)
+    if frame.color is not None:
+        out.color = np.asarray(Image.fromarray(frame.color).resize(size, Image.BILINEAR))
+    for name in ("ids", "geom", "cost", "iters"):
+        a = getattr(frame, name)
+        if a is not None:
+            ys = (np.arange(h) * a.shape[0] // h)[:, None]
+            xs = (np.arange(w) * a.shape[1] // w)[None, :]
+            setattr(out, name, a[ys, xs])
+    return out
 
 
 def _read(fbo: moderngl.Framebuffer, attachment: int, components: int, dtype: str, size) -> np.ndarray:

@@ -1,6 +1,7 @@
 // hash.glsl: per-fiber random numbers.
 //   uint  lowbias32(uint x)                        Chris Wellons' integer hash
 //   float fiber_random(uint seed, uint guide, uint ring, uint fiber, uint channel)   in [0, 1), 24 bits
+//   uint fiber_key(seed, guide, ring, fiber); float key_random(uint key, uint channel)   the same, factored
 //   float thesis_random(float slotDeg, float ring, float channel)   fract(1207.523 * phi), thesis 3.4
 // fiber_random depends only on integers, so a fiber's numbers never change with the camera or with
 // float rounding; thesis_random is kept for fidelity to the thesis and measured against it.
@@ -22,13 +23,20 @@ uint lowbias32(uint x) {
     return x;
 }
 
-float fiber_random(uint seed, uint guide, uint ring, uint fiber, uint channel) {
+// The hash of (seed, guide, ring, fiber), computed once per fiber; each channel costs one more round.
+uint fiber_key(uint seed, uint guide, uint ring, uint fiber) {
     uint h = lowbias32(seed + 0x9e3779b9u);
     h = lowbias32(h ^ guide);
     h = lowbias32(h ^ ring);
-    h = lowbias32(h ^ fiber);
-    h = lowbias32(h ^ channel);
-    return float(h >> 8) * (1.0 / 16777216.0);
+    return lowbias32(h ^ fiber);
+}
+
+float key_random(uint key, uint channel) {
+    return float(lowbias32(key ^ channel) >> 8) * (1.0 / 16777216.0);
+}
+
+float fiber_random(uint seed, uint guide, uint ring, uint fiber, uint channel) {
+    return key_random(fiber_key(seed, guide, ring, fiber), channel);
 }
 
 float thesis_random(float slotDeg, float ring, float channel) {

@@ -23,20 +23,25 @@ uniform float uFiberRadius;
 uniform float uLengthJitter;
 uniform uint uSeed;
 
-float fiber_rand(uint guide, int ring, int j, uint channel) {
+// The three random numbers that place a fiber: radial, angular, length.
+vec3 fiber_placement_randoms(uint guide, int ring, int j) {
 #if HASH_THESIS
     float slotDeg = degrees(uRingA[ring].z + float(j) * uRingA[ring].y);
-    return thesis_random(slotDeg, float(ring), float(channel));
+    return vec3(thesis_random(slotDeg, float(ring), float(CH_RADIAL)),
+                thesis_random(slotDeg, float(ring), float(CH_ANGULAR)),
+                thesis_random(slotDeg, float(ring), float(CH_LENGTH)));
 #else
-    return fiber_random(uSeed, guide, uint(ring), uint(j), channel);
+    uint key = fiber_key(uSeed, guide, uint(ring), uint(j));
+    return vec3(key_random(key, CH_RADIAL), key_random(key, CH_ANGULAR), key_random(key, CH_LENGTH));
 #endif
 }
 
 void fiber_center(uint guide, int ring, int j, out vec2 c, out float vEnd) {
     vec4 A = uRingA[ring];
     vec4 B = uRingB[ring];
-    float radius = A.x + (2.0 * fiber_rand(guide, ring, j, CH_RADIAL) - 1.0) * B.x;
-    float angle = A.z + float(j) * A.y + (2.0 * fiber_rand(guide, ring, j, CH_ANGULAR) - 1.0) * B.y;
+    vec3 u = fiber_placement_randoms(guide, ring, j);
+    float radius = A.x + (2.0 * u.x - 1.0) * B.x;
+    float angle = A.z + float(j) * A.y + (2.0 * u.y - 1.0) * B.y;
     c = radius * vec2(cos(angle), sin(angle));
-    vEnd = 1.0 - uLengthJitter * fiber_rand(guide, ring, j, CH_LENGTH);
+    vEnd = 1.0 - uLengthJitter * u.z;
 }

@@ -67,7 +67,10 @@ void test_fiber(Segment seg, UnitRay ur, int ring, int j, inout FiberHit best) {
     fiber_center(seg.guide, ring, j, c, vEnd);
     int kind;
     float s = fiber_test(seg, ur, c, vEnd, kind);
-    if (s < best.s) {
+    // Ties (a ray entering through a cap inside two overlapping fibers) go to the lower (ring, fiber),
+    // the order brute force tests them in, so every mode names the same fiber.
+    bool tie = s == best.s && (ring < best.ring || (ring == best.ring && j < best.fiber));
+    if (s < best.s || (tie && s < INF)) {
         best.s = s;
         best.ring = ring;
         best.fiber = j;

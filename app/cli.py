@@ -1,0 +1,299 @@
+"""The ``vfiber`` command line: render, info, doctor, presets, view, bench, export-osl.
+
+Every error a person can cause (a bad preset, a bad ``--set``, a broken groom file, no GL driver, a shader
+that does not compile) ends in one line on stderr and exit status 2, never a traceback. ``VFIBER_DEBUG=1``
+shows the traceback for developers.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .params import ParamError, Params, parse_assignment
+
+GROOM_SUFFIXES = (".hair", ".data", ".tfx", ".ply")
+OUTPUTS = ("shaded", "id", "depth", "normal", "ring", "cost")
+DEFAULT_PRESET = "default"
+
+
+class UsageError(ValueError):
+    """A command-line mistake the user can fix."""
+
+
+# --------------------------------------------------------------------------------------------------
+# parameters from the command line
+# --------------------------------------------------------------------------------------------------
+def resolve_params(target: str | None, assignments: list[str]) -> tuple[Params, str]:
+    """Params from a preset (name or file) or a groom file, then ``--set`` overrides. Returns a label."""
+    values: dict = {}
+    label = "defaults"
+    if target and Path(target).suffix.lower() in GROOM_SUFFIXES:
+        if not Path(target).exists():
+            raise UsageError(f"{target}: no such groom file")
+        values = {"scene.generator": "groom", "scene.groom_file": str(Path(target).resolve())}
+        label = target
+    else:
+        from .presets import bundled_names, find_preset
+
+        name = target or (DEFAULT_PRESET if DEFAULT_PRESET in bundled_names() else None)
+        if name:
+            preset = find_preset(name)
+            values = dict(preset.params.values)
+            label = str(preset.path or name)
+    for text in assignments:
+        key, value = parse_assignment(text)
+        values[key] = value
+    try:
+        return Params(values), label
+    except ParamError as e:
+        if assignments and e.source is None:
+            raise ParamError(e.bare, key=e.key, source="--set") from None
+        raise
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise UsageError(f"--size {text!r}: expected WIDTHxHEIGHT, e.g. 640x360") from None
+    if not (1 <= w <= 16384 and 1 <= h <= 16384):
+        raise UsageError(f"--size {text!r}: width and height must be between 1 and 16384")
+    return w, h
+
+
+# --------------------------------------------------------------------------------------------------
+# output files
+# --------------------------------------------------------------------------------------------------
+def output_image(frame, kind: str, p: Params) -> np.ndarray:
+    from .render import debug_views as dv
+
+    if kind == "shaded":
+        return frame.color
+    if kind == "id":
+        return dv.fiber_id_image(frame.ids)
+    if kind == "ring":
+        return dv.ring_image(frame.ids, p["fibers.rings"])
+    if kind == "depth":
+        return dv.depth_image(frame.geom)
+    if kind == "normal":
+        return dv.normal_image(frame.geom)
+    return dv.cost_image(frame.cost)
+
+
+def output_data(frame, kind: str) -> np.ndarray:
+    """Raw values for .npy/.exr: ids as uint32, the rest float32."""
+    if kind == "shaded":
+        return frame.color.astype(np.float32) / 255.0
+    if kind in ("id", "ring"):
+        return frame.ids if kind == "id" else frame.ids[..., 1:2]
+    if kind == "depth":
+        return frame.geom[..., 3:4]
+    if kind == "normal":
+        return frame.geom[..., :3]
+    return frame.cost
+
+
+def write_output(path: Path, frame, kind: str, p: Params) -> None:
+    from PIL import Image
+
+    from .atomic import atomic_path
+
+    suffix = path.suffix.lower()
+    with atomic_path(path) as tmp:
+        if suffix == ".npy":
+            with open(tmp, "wb") as f:
+                np.save(f, output_data(frame, kind))
+        elif suffix == ".exr":
+            import OpenEXR
+
+            data = output_data(frame, kind)
+            if data.dtype != np.uint32:
+                data = data.astype(np.float32)
+            channels = {1: {"Y": data[..., 0]}, 3: {"RGB": data}, 4: {"RGBA": data}}[data.shape[-1]]
+            header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+            OpenEXR.File(header, channels).write(str(tmp))
+        elif suffix in (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp"):
+            Image.fromarray(output_image(frame, kind, p)).save(tmp, format=Image.registered_extensions()[suffix])
+        else:
+            raise UsageError(f"{path}: unknown image type {suffix!r}; use .png, .exr or .npy")
+
+
+# --------------------------------------------------------------------------------------------------
+# commands
+# --------------------------------------------------------------------------------------------------
+def build_scene_for(p: Params):
+    from .scene.generators import build_scene
+
+    return build_scene(p)
+
+
+def cmd_render(args) -> int:
+    from .gl.context import create_headless
+    from .render.camera import Camera
+    from .render.renderer import Renderer
+
+    p, label = resolve_params(args.target or args.preset, args.set)
+    if args.mode:
+        p = p.replace(**{"quality.mode": args.mode})
+    size = parse_size(args.size)
+    out = Path(args.output_file)
+    if not out.parent.exists():
+        raise UsageError(f"{out}: folder {out.parent} does not exist")
+    kind = args.output
+    t0 = time.perf_counter()
+    scene = build_scene_for(p)
+    with create_headless() as gl:
+        renderer = Renderer(gl.ctx)
+        renderer.set_scene(scene)
+        cam = Camera.from_params(p, scene)
+        wanted = {"shaded": ("color",), "id": ("ids",), "ring": ("ids",), "depth": ("geom",),
+                  "normal": ("geom",), "cost": ("cost",)}[kind]
+        frame = renderer.render_quality(p, cam, size, outputs=wanted)
+        write_output(out, frame, kind, p)
+        seconds = time.perf_counter() - t0
+        print(f"wrote {out} ({kind}, {size[0]}x{size[1]}, {p['quality.mode']} mode) from {label}: "
+              f"{scene.n_segments} container segments, {seconds:.2f} s on {gl.renderer}")
+    return 0
+
+
+def cmd_info(args) -> int:
+    from . import reference
+    from .render.renderer import scene_gpu_bytes
+
+    p, label = resolve_params(args.target or args.preset, args.set)
+    scene = build_scene_for(p)
+    thesis, exact = reference.fiber_count(p, scene.n_segments and scene.n_guides or 0)
+    lay = reference.ring_layout(p)
+    lo, hi = scene.bounds()
+    print(f"source           {label}")
+    print(f"guides           {scene.n_guides}")
+    print(f"container segs   {scene.n_segments}")
+    print(f"bounding box     {np.round(lo, 4).tolist()} .. {np.round(hi, 4).tolist()}")
+    print(f"rings            {lay.rings} (fibers per ring, outer to inner: "
+          f"{', '.join(str(int(n)) for n in lay.n[:8])}{' ...' if lay.rings > 8 else ''})")
+    print(f"fibers/container {lay.fibers_per_container}")
+    print(f"fibers           {exact} exact; {thesis:.1f} by the thesis's expression 4.1")
+    print(f"scene GPU bytes  {scene_gpu_bytes(scene)} (the same whatever the fiber count)")
+    if hasattr(scene, "source_info"):
+        for line in scene.source_info():
+            print(line)
+    return 0
+
+
+def cmd_doctor(args) -> int:
+    from .doctor import main as doctor_main
+
+    return doctor_main()
+
+
+def cmd_presets(args) -> int:
+    from .presets import bundled_presets
+
+    presets = bundled_presets()
+    if not presets:
+        print("no bundled presets found")
+        return 1
+    width = max(len(p.name) for p in presets)
+    for preset in presets:
+        print(f"{preset.name:<{width}}  {preset.description}")
+    return 0
+
+
+def cmd_view(args) -> int:
+    from .viewer.app import run_viewer
+
+    return run_viewer(args.target, script=args.script)
+
+
+def cmd_bench(args) -> int:
+    from .bench.__main__ import main as bench_main
+
+    return bench_main(args.rest)
+
+
+def cmd_export_osl(args) -> int:
+    from .export.osl import main as export_main
+
+    return export_main(args.rest)
+
+
+def make_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="vfiber", description="Hair and fur lookdev with virtual fibers.")
+    sub = ap.add_subparsers(dest="command", required=True)
+
+    def scene_args(sp):
+        sp.add_argument("target", nargs="?", help="preset name or .toml file, or a groom file "
+                        "(.hair .data .tfx .ply)")
+        sp.add_argument("--preset", help="preset name or file (same as the positional argument)")
+        sp.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="override a parameter, e.g. --set fibers.rings=20 (repeatable)")
+
+    r = sub.add_parser("render", help="render one frame offscreen to an image")
+    scene_args(r)
+    r.add_argument("--mode", choices=("fast", "exact", "brute"))
+    r.add_argument("--size", default="640x360", help="WIDTHxHEIGHT (default 640x360)")
+    r.add_argument("--output", choices=OUTPUTS, default="shaded", help="what to write (default shaded)")
+    r.add_argument("-o", dest="output_file", required=True, help="output file: .png, .exr or .npy")
+    r.set_defaults(func=cmd_render)
+
+    i = sub.add_parser("info", help="containers, fibers and GPU bytes of a preset or groom")
+    scene_args(i)
+    i.set_defaults(func=cmd_info)
+
+    sub.add_parser("doctor", help="check the OpenGL set-up").set_defaults(func=cmd_doctor)
+    sub.add_parser("presets", help="list the bundled presets").set_defaults(func=cmd_presets)
+
+    v = sub.add_parser("view", help="open the lookdev viewer")
+    v.add_argument("target", nargs="?", help="preset name or file, or a groom file")
+    v.add_argument("--script", help="run a viewer script (automated sessions and tests)")
+    v.set_defaults(func=cmd_view)
+
+    b = sub.add_parser("bench", help="run the benchmark suites (see: vfiber bench --help)", add_help=False)
+    b.add_argument("rest", nargs=argparse.REMAINDER)
+    b.set_defaults(func=cmd_bench)
+
+    e = sub.add_parser("export-osl", help="export a preset as an OSL shader (see: vfiber export-osl --help)",
+                       add_help=False)
+    e.add_argument("rest", nargs=argparse.REMAINDER)
+    e.set_defaults(func=cmd_export_osl)
+    return ap
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = make_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except KeyboardInterrupt:
+        print("vfiber: interrupted", file=sys.stderr)
+        return 130
+    except Exception as e:  # noqa: BLE001 - the one place that turns errors into messages
+        if os.environ.get("VFIBER_DEBUG"):
+            raise
+        print(f"vfiber: {describe_error(e)}", file=sys.stderr)
+        return 2
+
+
+def describe_error(e: Exception) -> str:
+    """One line for a person; unexpected errors say so and how to see the details."""
+    from .gl.context import GLContextError
+    from .gl.shaders import ShaderError
+
+    expected = (ParamError, UsageError, GLContextError, ShaderError, FileNotFoundError, PermissionError)
+    try:
+        from .scene.grooms import GroomError
+        expected += (GroomError,)
+    except ImportError:
+        pass
+    if isinstance(e, expected):
+        return str(e)
+    return f"unexpected error: {type(e).__name__}: {e} (run with VFIBER_DEBUG=1 for the traceback)"
+
+
+if __name__ == "__main__":
+    sys.exit(main())

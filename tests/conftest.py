@@ -1,0 +1,38 @@
+"""One headless GL context for the whole session, a renderer on it, and the golden-image options."""
+
+from __future__ import annotations
+
+import pytest
+
+from app.gl.context import create_headless
+from app.render.renderer import Renderer
+
+
+def pytest_addoption(parser):
+    parser.addoption("--regen-goldens", action="store_true", help="rewrite tests/goldens/*.png")
+
+
+@pytest.fixture(scope="session")
+def gl():
+    hc = create_headless()
+    yield hc
+    hc.release()
+
+
+@pytest.fixture(scope="session")
+def ctx(gl):
+    return gl.ctx
+
+
+@pytest.fixture()
+def renderer(ctx):
+    assert ctx.error == "GL_NO_ERROR"
+    r = Renderer(ctx)
+    yield r
+    r.release_targets()
+    assert ctx.error == "GL_NO_ERROR", "the test left a GL error behind"
+
+
+@pytest.fixture()
+def regen_goldens(request) -> bool:
+    return request.config.getoption("--regen-goldens")
