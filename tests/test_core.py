@@ -1,0 +1,127 @@
+"""The renderer's contract: constant scene memory, parameters that matter, finite outputs, clear errors,
+and golden images that catch regressions (on llvmpipe only)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from app.gl.shaders import ProgramCache, ShaderCompileError, glsl_root
+from app.render.renderer import Renderer, scene_gpu_bytes
+from tests.helpers import setup
+
+SIZE = (160, 96)
+GOLDENS = Path(__file__).parent / "goldens"
+
+
+@pytest.mark.parametrize("a,b", [({"fibers.phi_step": 1.0}, {"fibers.phi_step": 180.0}),
+                                 ({"fibers.rings": 1, "fibers.fiber_radius": 0.01},
+                                  {"fibers.rings": 40, "fibers.fiber_radius": 0.01})])
+def test_scene_gpu_bytes_do_not_depend_on_fiber_count(renderer, a, b):
+    sizes = []
+    for values in (a, b):
+        p, scene, cam = setup(renderer, values)
+        sizes.append((renderer.scene_gpu_bytes, scene_gpu_bytes(scene)))
+        frame = renderer.render(p, cam, SIZE, outputs=("ids",))
+        assert frame.hit.any()
+    assert sizes[0] == sizes[1]
+    assert sizes[0][0] == sizes[0][1]
+
+
+CHANGES = [("fibers.rings", 6), ("fibers.phi_step", 6.0), ("fibers.phi_increment", 2.0),
+           ("fibers.even_spacing", 1.0), ("fibers.fiber_radius", 0.02), ("fibers.radial_jitter", 1.0),
+           ("fibers.angular_jitter", 0.0), ("fibers.length_jitter", 0.8), ("fibers.hash", "thesis"),
+           ("fibers.seed", 7), ("scene.taper", 0.5), ("scene.bend", 40.0), ("look.color", (0.1, 0.2, 0.9)),
+           ("look.roughness", 0.9), ("look.light_azimuth", -120.0), ("look.self_shadow", "off"),
+           ("camera.azimuth", 80.0)]
+
+
+@pytest.mark.parametrize("key,value", CHANGES, ids=[c[0] for c in CHANGES])
+def test_a_changed_parameter_changes_the_image(renderer, key, value):
+    # phi_step 3 leaves the fibers room to move in their slots, so angular jitter shows
+    base = {"scene.count": 8, "scene.segments": 3, "fibers.phi_step": 3.0}
+    p, scene, cam = setup(renderer, base)
+    before = renderer.render(p, cam, SIZE).color
+    camera = {"azimuth": value} if key == "camera.azimuth" else None
+    p2, scene2, cam2 = setup(renderer, {**base, key: value}, camera)
+    after = renderer.render(p2, cam2, SIZE).color
+    changed = np.any(before != after, -1).mean()
+    assert changed > 0.002, f"{key} = {value!r} changed only {changed:.4%} of the pixels"
+
+
+@pytest.mark.parametrize("mode", ["fast", "exact", "brute"])
+def test_float_outputs_are_finite(renderer, mode):
+    p, scene, cam = setup(renderer, {"scene.taper": 0.7, "scene.segments": 4, "scene.bend": 90.0,
+                                     "fibers.radial_jitter": 1.0, "fibers.angular_jitter": 1.0})
+    frame = renderer.render(p, cam, SIZE, outputs=("geom", "cost", "ids"), mode=mode)
+    assert np.isfinite(frame.geom).all() and np.isfinite(frame.cost).all()
+    n = frame.geom[..., :3][frame.hit]
+    assert np.allclose(np.linalg.norm(n, axis=-1), 1.0, atol=1e-3)
+    assert (frame.geom[..., 3][frame.hit] > 0).all()
+
+
+def test_shader_errors_name_the_glsl_file_and_line(ctx, tmp_path):
+    root = tmp_path / "glsl"
+    shutil.copytree(glsl_root(), root)
+    target = root / "fibers" / "traverse.glsl"
+    lines = target.read_text().splitlines()
+    where = next(i for i, line in enumerate(lines) if "gTests++;" in line)
+    lines[where] = "    gTests += undefined_thing;"
+    target.write_text("\n".join(lines) + "\n")
+    renderer = Renderer(ctx, ProgramCache(root))
+    p, scene, cam = setup(renderer, {})
+    with pytest.raises(ShaderCompileError) as info:
+        renderer.render(p, cam, (8, 8))
+    assert f"glsl/fibers/traverse.glsl:{where + 1}" in str(info.value)
+    assert ctx.error in ("GL_NO_ERROR", "GL_INVALID_OPERATION")  # clear the slate for the next test
+
+
+GOLDEN_SCENES = {
+    "carpet-exact": ({}, {}),
+    "single-side": ({"scene.generator": "single", "scene.radius": 1.0, "scene.length": 4.0,
+                     "fibers.rings": 6, "fibers.phi_step": 4.0, "fibers.fiber_radius": 0.03},
+                    {"elevation": 5.0}),
+    "bent-tapered": ({"scene.count": 6, "scene.segments": 5, "scene.bend": 80.0, "scene.taper": 0.6}, {}),
+}
+# per-golden tolerance: fraction of pixels allowed to differ by more than 8/255 (llvmpipe is exact
+# run to run; different LLVM versions may round atan() differently at fiber edges)
+TOLERANCE = {"carpet-exact": 0.002, "single-side": 0.002, "bent-tapered": 0.002}
+
+
+def _mesa_version(gl) -> str:
+    return gl.version.split("Mesa")[-1].strip() if "Mesa" in gl.version else gl.version
+
+
+@pytest.mark.parametrize("name", sorted(GOLDEN_SCENES))
+def test_goldens(gl, renderer, regen_goldens, name):
+    if "llvmpipe" not in gl.renderer:
+        pytest.skip(f"goldens are recorded on llvmpipe; this is {gl.renderer}")
+    values, camera = GOLDEN_SCENES[name]
+    p, scene, cam = setup(renderer, values, camera)
+    img = renderer.render(p, cam, (240, 144)).color
+    path = GOLDENS / f"{name}.png"
+    meta_path = GOLDENS / "meta.json"
+    meta = json.loads(meta_path.read_text()) if meta_path.exists() else {}
+    if regen_goldens or not path.exists():
+        Image.fromarray(img).save(path)
+        meta[name] = {"mesa": _mesa_version(gl), "renderer": gl.renderer}
+        meta_path.write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
+        if not regen_goldens:
+            pytest.skip(f"recorded a new golden {path.name}; run again to compare")
+        return
+    want = np.asarray(Image.open(path).convert("RGB"))
+    diff = np.abs(want.astype(int) - img.astype(int)).max(-1)
+    bad = (diff > 8).mean()
+    if bad > TOLERANCE[name]:
+        out = Path(__file__).parent / "_failures"
+        out.mkdir(exist_ok=True)
+        Image.fromarray(img).save(out / f"{name}.got.png")
+        Image.fromarray(np.clip(diff * 8, 0, 255).astype(np.uint8)).save(out / f"{name}.diff.png")
+        recorded = meta.get(name, {}).get("mesa", "?")
+        pytest.fail(f"{name}: {bad:.3%} of pixels differ (recorded on Mesa {recorded}, now "
+                    f"{_mesa_version(gl)}); see tests/_failures/{name}.*.png, or --regen-goldens")
