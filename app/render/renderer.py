@@ -31,6 +31,11 @@ from .camera import Camera
 MAX_RINGS = 64
 LOOP_CAP = 65_535                 # llvmpipe ends a shader's loops silently after this many iterations
 BRUTE_CHUNK = 60_000              # fibers per brute-force draw: stays under LOOP_CAP with 64 rings
+MAX_SUB = 16                      # chord pieces per curved-fiber test (glsl/fibers/curved.glsl)
+# curved fibers are tested once per arc (at most 2 per ring) at up to MAX_SUB + 1 loop iterations each
+BRUTE_CHUNK_SHAPED = (LOOP_CAP - 4 * MAX_RINGS) // (2 * (MAX_SUB + 1))
+TWIST_PATTERNS = {"uniform": 0, "ramped": 1, "alternating": 2}
+CURL_PATTERNS = {"helix": 0, "wave": 1}
 MODES = {"fast": 0, "exact": 1, "brute": 2}
 
 # A unit cube as 12 triangles, wound counter-clockwise seen from outside.
@@ -144,8 +149,9 @@ class Renderer:
 
     # --- drawing -----------------------------------------------------------------------------------
     def program(self, p: Params, mode: str, cost: bool) -> moderngl.Program:
-        defines = {"TRAVERSAL": MODES[mode], "MAX_RINGS": MAX_RINGS,
-                   "HASH_THESIS": int(p["fibers.hash"] == "thesis"), "COST_PASS": int(cost)}
+        defines = {"TRAVERSAL": MODES[mode], "MAX_RINGS": MAX_RINGS, "MAX_SUB": MAX_SUB,
+                   "HASH_THESIS": int(p["fibers.hash"] == "thesis"), "COST_PASS": int(cost),
+                   "SHAPED": int(is_shaped(p))}
         return self.programs.get(self.ctx, "stages/container.vert", "stages/container.frag", defines)
 
     def _set_uniforms(self, prog: moderngl.Program, p: Params, cam: Camera, size, offset) -> None:
@@ -170,6 +176,10 @@ class Renderer:
             "uAmbient": p["look.ambient"], "uBaseColor": p["look.color"], "uRoughness": p["look.roughness"],
             "uTintVariation": p["look.tint_variation"], "uRoughnessVariation": p["look.roughness_variation"],
             "uShadowDensity": p["look.shadow_density"] if p["look.self_shadow"] != "off" else 0.0,
+            "uEllipsoid": p["shape.ellipsoid"], "uTwist": p["shape.twist"],
+            "uTwistPattern": TWIST_PATTERNS[p["shape.twist_pattern"]],
+            "uCurlAmplitude": p["shape.curl_amplitude"] / K, "uCurlFrequency": p["shape.curl_frequency"],
+            "uCurlPattern": CURL_PATTERNS[p["shape.curl_pattern"]],
         }
         for name, value in values.items():
             if name in prog:
@@ -187,9 +197,10 @@ class Renderer:
             vao.render(moderngl.TRIANGLES, instances=self.scene.n_segments)
             return 1
         total = reference.ring_layout(p).fibers_per_container
+        chunk = BRUTE_CHUNK_SHAPED if is_shaped(p) else BRUTE_CHUNK
         draws = 0
-        for start in range(0, total, BRUTE_CHUNK):
-            prog["uBruteRange"].value = (start, min(total, start + BRUTE_CHUNK))
+        for start in range(0, total, chunk):
+            prog["uBruteRange"].value = (start, min(total, start + chunk))
             vao.render(moderngl.TRIANGLES, instances=self.scene.n_segments)
             draws += 1
         return draws
@@ -251,6 +262,11 @@ class Renderer:
             ctx.blend_equation = moderngl.FUNC_ADD
             ctx.disable(moderngl.BLEND)
         return frame
+
+
+def is_shaped(p: Params) -> bool:
+    """Curved fibers need the slower curved-fiber traversal; straight ones keep the fast path."""
+    return p["shape.ellipsoid"] > 0 or p["shape.curl_amplitude"] > 0 or p["shape.twist"] != 0
 
 
 def scene_gpu_bytes(scene: Scene) -> int:

@@ -36,6 +36,15 @@ vec3 fiber_placement_randoms(uint guide, int ring, int j) {
 #endif
 }
 
+float fiber_curl_phase(uint guide, int ring, int j) {
+#if HASH_THESIS
+    float slotDeg = degrees(uRingA[ring].z + float(j) * uRingA[ring].y);
+    return thesis_random(slotDeg, float(ring), float(CH_CURL));
+#else
+    return key_random(fiber_key(uSeed, guide, uint(ring), uint(j)), CH_CURL);
+#endif
+}
+
 void fiber_center(uint guide, int ring, int j, out vec2 c, out float vEnd) {
     vec4 A = uRingA[ring];
     vec4 B = uRingB[ring];

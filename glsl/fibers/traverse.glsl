@@ -18,6 +18,10 @@
 #include "fibers/layout.glsl"
 #include "geometry/container.glsl"
 
+#ifndef SHAPED
+#define SHAPED 0
+#endif
+
 #ifndef TRAVERSAL
 #define TRAVERSAL 1
 #endif
@@ -28,12 +32,17 @@ struct FiberHit {
     int fiber;
     int kind;       // 0 fiber side, 1 fiber tip (length cut), 2 container boundary (cap or joint)
     vec2 c;         // fiber centre in unit space
+    vec2 dcdv;      // how the centre moves with the guide parameter (curved fibers; 0 when straight)
 };
 
 int gTests = 0;
 int gPieces = 0;
 int gIters = 0;
 uniform ivec2 uBruteRange;
+
+#if SHAPED
+#include "fibers/curved.glsl"
+#endif
 
 FiberHit no_hit() {
     FiberHit h;
@@ -42,6 +51,7 @@ FiberHit no_hit() {
     h.fiber = -1;
     h.kind = 0;
     h.c = vec2(0.0);
+    h.dcdv = vec2(0.0);
     return h;
 }
 
@@ -117,7 +127,142 @@ bool visit_piece(Segment seg, UnitRay ur, int i, float sA, float sB, inout Fiber
     return false;
 }
 
+
+#if SHAPED
+// --- curved fibers -------------------------------------------------------------------------------------
+// A ring's fibers no longer sit in its annulus at every height: the ellipsoid scales them by E(v) in
+// [eLo, eHi] over this segment and the curl moves them by up to its amplitude. So each ring gets a band
+// [inner, outer] that holds its fibers at every height of the segment, bands of neighbouring rings may
+// overlap, and arcs are visited in order of where they start: fronts of the rings crossed twice (outer
+// to inner), first halves of the rings crossed once, their second halves, then the backs (inner to outer).
+
+struct Bands { float eLo; float eHi; };
+
+Bands segment_bands(Segment seg) {
+    float vLo = unit_to_v(seg, seg.zLo / (seg.r0 + seg.kappa * seg.zLo));
+    float vHi = unit_to_v(seg, seg.zHi / (seg.r0 + seg.kappa * seg.zHi));
+    float ea = shape_scale(vLo), eb = shape_scale(vHi);
+    Bands b;
+    b.eLo = min(ea, eb);
+    b.eHi = (min(vLo, vHi) <= 0.5 && max(vLo, vHi) >= 0.5) ? 1.0 : max(ea, eb);
+    return b;
+}
+
+vec2 ring_band(int i, Bands b) {
+    float rho = uRingA[i].x, dr = uRingB[i].x;
+    float grow = uFiberRadius + uCurlAmplitude + 1e-6;
+    return vec2(max(0.0, b.eLo * (rho - dr) - grow), b.eHi * (rho + dr) + grow);
+}
+
+float shaped_reach(int i, Bands b) {
+    float dMin = b.eLo * (uRingA[i].x - uRingB[i].x);
+    float r = uFiberRadius + uCurlAmplitude;
+    float disc = dMin > r ? asin(r / dMin) : 3.14159265359;
+    return uRingB[i].y + disc + EPS_ANGLE;
+}
+
+// Test ring i's candidates on the arc [sA, sB]; in brute mode every fiber of the chunk. True: done.
+bool visit_shaped(Segment seg, UnitRay ur, int i, float sA, float sB, Bands bands, inout FiberHit best) {
+    float a = max(sA, ur.s0);
+    float b = min(sB, ur.s1);
+    if (!(a <= b)) return false;
+#if TRAVERSAL != 2
+    if (a >= best.s) return true;
+#endif
+    gPieces++;
+    int n = uRingN[i].x;
+    int j0, count, dir;
+#if TRAVERSAL == 2
+    j0 = max(0, uBruteRange.x - uRingN[i].y);
+    count = max(0, min(n, uBruteRange.y - uRingN[i].y) - j0);
+    dir = 1;
+#else
+    vec2 pA = ur.O.xy + a * ur.D.xy;
+    vec2 pB = ur.O.xy + b * ur.D.xy;
+    float thA = dot(pA, pA) > 0.0 ? atan(pA.y, pA.x) : atan(pB.y, pB.x);
+    float thB = dot(pB, pB) > 0.0 ? atan(pB.y, pB.x) : thA;
+    float span = wrap_pi(thB - thA);
+    vec2 tw = twist_range(unit_to_v(seg, ur.O.z + a * ur.D.z), unit_to_v(seg, ur.O.z + b * ur.D.z), i);
+    float reach = shaped_reach(i, bands);
+    vec4 ring = uRingA[i];
+    dir = span >= 0.0 ? 1 : -1;
+    float first = dir > 0 ? thA - tw.y - reach : thA - tw.x + reach;
+    float last = dir > 0 ? thA + span - tw.x + reach : thA + span - tw.y - reach;
+    first = (first - ring.z) / ring.y;
+    last = (last - ring.z) / ring.y;
+    j0 = dir > 0 ? int(ceil(first)) : int(floor(first));
+    int j1 = dir > 0 ? int(floor(last)) : int(ceil(last));
+    count = min(max(0, (j1 - j0) * dir + 1), n);
+#endif
+    for (int k = 0; k < count; k++) {
+        gIters++;
+        int j = j0 + k * dir;
+        j -= n * int(floor(float(j) / float(n)));
+        vec2 rest;
+        float vEnd;
+        fiber_center(seg.guide, i, j, rest, vEnd);
+        int kind;
+        float s = curved_fiber_test(seg, ur, rest, fiber_curl_phase(seg.guide, i, j), i, vEnd, bands.eLo,
+                                    a, b, kind);
+        bool tie = s == best.s && (i < best.ring || (i == best.ring && j < best.fiber));
+        if (s < best.s || (tie && s < INF)) {
+            best.s = s;
+            best.ring = i;
+            best.fiber = j;
+            best.kind = kind;
+            float v = unit_to_v(seg, ur.O.z + s * ur.D.z);
+            float phase = fiber_curl_phase(seg.guide, i, j);
+            best.c = fiber_center_at(rest, v, i, phase);
+            best.dcdv = (fiber_center_at(rest, v + 1e-3, i, phase) - fiber_center_at(rest, v - 1e-3, i, phase)) / 2e-3;
+        }
+#if TRAVERSAL == 0
+        if (best.s < INF) return true;
+#endif
+    }
+    return false;
+}
+
+FiberHit traverse_shaped(Segment seg, UnitRay ur) {
+    FiberHit best = no_hit();
+    Bands bands = segment_bands(seg);
+    vec2 o2 = ur.O.xy;
+    vec2 d2 = ur.D.xy;
+    float a = dot(d2, d2);
+    float sMid = a > 0.0 ? -dot(o2, d2) / a : ur.s0;
+    vec2 backs[MAX_RINGS];      // back arcs of the rings crossed twice
+    float halves[MAX_RINGS];    // where the second half of a ring crossed once ends
+    int nTwice = 0;
+    int nOnce = 0;
+    for (int i = 0; i < uRings; i++) {
+        gIters++;
+        vec2 band = ring_band(i, bands);
+        vec2 outer = circle_interval(o2, d2, vec2(0.0), band.y);
+        if (outer.x > outer.y) break;                       // this band and every inner one are missed
+        vec2 inner = circle_interval(o2, d2, vec2(0.0), band.x);
+        if (inner.x <= inner.y && nOnce == 0) {
+            if (visit_shaped(seg, ur, i, outer.x, inner.x, bands, best)) return best;
+            backs[nTwice++] = vec2(inner.y, outer.y);
+        } else {
+            if (visit_shaped(seg, ur, i, outer.x, sMid, bands, best)) return best;
+            halves[nOnce++] = outer.y;
+        }
+    }
+    for (int k = 0; k < nOnce; k++) {
+        gIters++;
+        if (visit_shaped(seg, ur, nTwice + k, sMid, halves[k], bands, best)) return best;
+    }
+    for (int i = nTwice - 1; i >= 0; i--) {
+        gIters++;
+        if (visit_shaped(seg, ur, i, backs[i].x, backs[i].y, bands, best)) return best;
+    }
+    return best;
+}
+#endif
+
 FiberHit traverse(Segment seg, UnitRay ur) {
+#if SHAPED
+    return traverse_shaped(seg, ur);
+#endif
     FiberHit best = no_hit();
     int K = uRings;
 #if TRAVERSAL == 2

@@ -3,6 +3,7 @@
 //   bool     to_unit_space(Segment seg, vec3 ro, vec3 rd, float tNear, out UnitRay ur)
 //   float    unit_to_world_t(Segment seg, UnitRay ur, float s)
 //   float    z_cut_unit(Segment seg, float vEnd)
+//   float    unit_to_v(Segment seg, float zUnit)
 // Unit space: P' = P_local / w(z), w(z) = r0 + kappa z. It maps the (tapered) container to the unit
 // cylinder and every fiber to a vertical cylinder of radius fiber_radius; lines stay lines and order
 // along a ray is kept while w > 0, so the nearest hit there is the nearest hit in the world.
@@ -106,6 +107,12 @@ bool to_unit_space(Segment seg, vec3 ro, vec3 rd, float tNear, out UnitRay ur) {
 float unit_to_world_t(Segment seg, UnitRay ur, float s) {
     float sigma = s / ur.Dlen;
     return ur.tb + sigma * ur.wO * ur.wO / (1.0 - sigma * ur.wO * seg.kappa * ur.d.z);
+}
+
+// Guide parameter v at unit-space height zUnit (the projective map inverted along the axis).
+float unit_to_v(Segment seg, float zUnit) {
+    float z = seg.r0 * zUnit / (1.0 - seg.kappa * zUnit);
+    return seg.v0 + (seg.v1 - seg.v0) * z / seg.h;
 }
 
 float z_cut_unit(Segment seg, float vEnd) {

@@ -65,7 +65,10 @@ void main() {
     }
     mat3 worldFromLocal = mat3(seg.ex, seg.ey, seg.ez);
     vec3 N = normalize(worldFromLocal * nLocal);
-    vec3 T = normalize(worldFromLocal * vec3(seg.kappa * hit.c, 1.0));
+    // the fiber's direction: d/dz of (w(z) c(v(z)), z), w the local container radius at the hit
+    float wHit = seg.r0 / (1.0 - seg.kappa * P.z);
+    vec2 slope = seg.kappa * hit.c + wHit * hit.dcdv * (seg.v1 - seg.v0) / seg.h;
+    vec3 T = normalize(worldFromLocal * vec3(slope, 1.0));
     vec3 V = -rd;
     if (dot(N, V) < 0.0) N = -N;
 
