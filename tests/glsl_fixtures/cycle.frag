@@ -1,0 +1,3 @@
+#version 450
+#include "cycle/x.glsl"
+void main() {}

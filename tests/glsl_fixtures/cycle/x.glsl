@@ -1,0 +1,2 @@
+// x.glsl: half of a deliberate include cycle.
+#include "cycle/y.glsl"

@@ -1,0 +1,3 @@
+// y.glsl: the other half of the cycle.
+
+#include "cycle/x.glsl"
