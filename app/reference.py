@@ -328,12 +328,27 @@ def brute_nearest(scene: Scene, p: Params, ro: np.ndarray, rd: np.ndarray, t_nea
     out = Hits(np.full(n, np.inf), np.full(n, -1), np.full(n, -1), np.full(n, -1), np.full(n, -1))
     lay = ring_layout(p)
     rf = lay.fiber_radius
+    sh = Shape.from_params(p)
     fibers_cache: dict[int, tuple] = {}
     for si, row in enumerate(scene.segments):
         seg = segment(row)
         ur = to_unit_space(seg, ro, rd, t_near)
         live = np.nonzero(ur.s0 <= ur.s1)[0]
         if not len(live) or rf <= 0:
+            continue
+        if sh.curved:
+            s_best, ring_b, j_b = shaped_nearest_segment(sh, lay, seg, ur, live)
+            ok = np.isfinite(s_best)
+            rows = live[ok]
+            t = unit_to_world_t(seg, ur, s_best[ok], rows)
+            ray = ur.idx[rows]
+            closer = t < out.t[ray]
+            ray, t = ray[closer], t[closer]
+            out.t[ray] = t
+            out.guide[ray] = seg.guide
+            out.segment[ray] = si
+            out.ring[ray] = ring_b[ok][closer]
+            out.fiber[ray] = j_b[ok][closer]
             continue
         if seg.guide not in fibers_cache:
             fibers_cache[seg.guide] = all_fibers(lay, seg.guide)
@@ -388,3 +403,176 @@ def rings_crossed(scene: Scene, p: Params, ro, rd, t_near: float = 0.0) -> np.nd
         deepest = np.minimum(K - 1, np.floor((1.0 - r_min) * K)).astype(np.int64)
         np.add.at(count, ur.idx[live], deepest[live] + 1)
     return count
+
+
+# --------------------------------------------------------------------------------------------------
+# Curved fibers (glsl/fibers/shape.glsl, curved.glsl, traverse.glsl: traverse_shaped)
+# --------------------------------------------------------------------------------------------------
+TWIST_PATTERNS = {"uniform": 0, "ramped": 1, "alternating": 2}
+CURL_PATTERNS = {"helix": 0, "wave": 1}
+MAX_SUB = 16
+
+
+@dataclass(frozen=True)
+class Shape:
+    ellipsoid: float
+    twist: float
+    twist_pattern: int
+    curl_amplitude: float      # unit space
+    curl_frequency: float
+    curl_pattern: int
+
+    @staticmethod
+    def from_params(p: Params) -> "Shape":
+        return Shape(p["shape.ellipsoid"], p["shape.twist"], TWIST_PATTERNS[p["shape.twist_pattern"]],
+                     p["shape.curl_amplitude"] / p["fibers.rings"], p["shape.curl_frequency"],
+                     CURL_PATTERNS[p["shape.curl_pattern"]])
+
+    @property
+    def curved(self) -> bool:
+        return self.ellipsoid > 0 or self.curl_amplitude > 0 or self.twist != 0
+
+
+def shape_twist(sh: Shape, v, ring):
+    t = v * v if sh.twist_pattern == 1 else v
+    sgn = np.where((sh.twist_pattern == 2) & (np.asarray(ring) % 2 == 1), -1.0, 1.0)
+    return sgn * 2 * math.pi * sh.twist * t
+
+
+def shape_scale(sh: Shape, v):
+    x = sh.ellipsoid * (2.0 * np.asarray(v) - 1.0)
+    return np.sqrt(np.maximum(0.0, 1.0 - x * x))
+
+
+def fiber_center_at(sh: Shape, rest_x, rest_y, v, ring, curl_phase):
+    tau = shape_twist(sh, v, ring)
+    ct, st = np.cos(tau), np.sin(tau)
+    e = shape_scale(sh, v)
+    cx, cy = e * (ct * rest_x - st * rest_y), e * (st * rest_x + ct * rest_y)
+    if sh.curl_amplitude > 0:
+        a = 2 * math.pi * (sh.curl_frequency * v + curl_phase)
+        if sh.curl_pattern == 0:
+            cx, cy = cx + sh.curl_amplitude * np.cos(a), cy + sh.curl_amplitude * np.sin(a)
+        else:
+            length = np.hypot(cx, cy)
+            safe = np.where(length > 0, length, 1.0)
+            ax, ay = np.where(length > 0, -cy / safe, 1.0), np.where(length > 0, cx / safe, 0.0)
+            s = sh.curl_amplitude * np.sin(a)
+            cx, cy = cx + s * ax, cy + s * ay
+    return cx, cy
+
+
+def unit_to_v(seg: Segment, z_unit):
+    z = seg.r0 * z_unit / (1.0 - seg.kappa * z_unit)
+    return seg.v0 + (seg.v1 - seg.v0) * z / seg.h
+
+
+def chord_pieces(sh: Shape, lay: RingLayout, dv, ring, e_lo: float):
+    rho = lay.rho[ring] + lay.max_dr[ring]
+    curl = sh.curl_amplitude * (2 * math.pi * sh.curl_frequency) ** 2
+    rate = 2 * math.pi * abs(sh.twist) * (2.0 if sh.twist_pattern == 1 else 1.0)
+    ell = rho * 4.0 * sh.ellipsoid ** 2 / max(e_lo, 0.25) ** 3
+    bend = curl + rho * rate * rate + ell
+    if np.all(bend <= 0):
+        return np.ones_like(dv, dtype=np.int64)
+    dv_max = np.sqrt(0.8 * max(lay.fiber_radius, 1e-30) / bend)
+    return np.clip(np.ceil(dv / dv_max), 1, MAX_SUB).astype(np.int64)
+
+
+def segment_bands(sh: Shape, seg: Segment) -> tuple[float, float]:
+    v_lo = unit_to_v(seg, seg.z_lo / (seg.r0 + seg.kappa * seg.z_lo))
+    v_hi = unit_to_v(seg, seg.z_hi / (seg.r0 + seg.kappa * seg.z_hi))
+    ea, eb = float(shape_scale(sh, v_lo)), float(shape_scale(sh, v_hi))
+    e_hi = 1.0 if min(v_lo, v_hi) <= 0.5 <= max(v_lo, v_hi) else max(ea, eb)
+    return min(ea, eb), e_hi
+
+
+def curved_fiber_test(sh, lay, seg, ur_O, ur_D, s0, s1, rest_x, rest_y, phase, ring, v_end, e_lo, sA, sB):
+    """Entry parameter of each (ray, fiber) pair over the arc [sA, sB] (broadcast arrays), inf on a miss."""
+    zc = z_cut_unit(seg, v_end)
+    Oz, Dz = ur_O[..., 2], ur_D[..., 2]
+    z0, z1 = _slab(Oz, Dz, -np.inf, zc)
+    a = np.maximum(np.maximum(sA, s0), z0)
+    b = np.minimum(np.minimum(sB, s1), z1)
+    live = (a <= b) & (zc != -np.inf)
+    a = np.where(live, a, 0.0)
+    b = np.where(live, b, 0.0)
+    va, vb = unit_to_v(seg, Oz + a * Dz), unit_to_v(seg, Oz + b * Dz)
+    n = chord_pieces(sh, lay, np.abs(vb - va), ring, e_lo)
+    step = (b - a) / n
+    out = np.full(np.broadcast(a, rest_x).shape, np.inf)
+    c_prev = fiber_center_at(sh, rest_x, rest_y, va, ring, phase)
+    done = ~live
+    for k in range(MAX_SUB):
+        active = ~done & (k < n)
+        if not active.any():
+            break
+        sk = a + k * step
+        sk1 = np.where(k == n - 1, b, sk + step)
+        c_next = fiber_center_at(sh, rest_x, rest_y, unit_to_v(seg, Oz + sk1 * Dz), ring, phase)
+        length = sk1 - sk
+        safe = np.where(length > 0, length, 1.0)
+        q0x = ur_O[..., 0] + sk * ur_D[..., 0] - c_prev[0]
+        q0y = ur_O[..., 1] + sk * ur_D[..., 1] - c_prev[1]
+        dqx = np.where(length > 0, ur_D[..., 0] - (c_next[0] - c_prev[0]) / safe, ur_D[..., 0])
+        dqy = np.where(length > 0, ur_D[..., 1] - (c_next[1] - c_prev[1]) / safe, ur_D[..., 1])
+        e0, e1 = circle_interval(q0x, q0y, dqx, dqy, 0.0, 0.0, lay.fiber_radius)
+        lo, hi = np.maximum(e0, 0.0), np.minimum(e1, length)
+        hit = active & (lo <= hi)
+        out = np.where(hit, sk + lo, out)
+        done |= hit | (k == n - 1)
+        c_prev = c_next
+    return out
+
+
+def shaped_nearest_segment(sh: Shape, lay: RingLayout, seg: Segment, ur: UnitRays, live: np.ndarray,
+                           chunk: int = 2_000_000):
+    """Nearest curved-fiber hit of the rays ``live`` in one segment: (s, ring, fiber) arrays, brute force
+    over the same arcs the shader walks (every fiber of a ring over each arc of that ring)."""
+    O, D, s0, s1 = ur.O[live], ur.D[live], ur.s0[live], ur.s1[live]
+    n_rays = len(live)
+    best_s = np.full(n_rays, np.inf)
+    best_ring = np.full(n_rays, -1)
+    best_j = np.full(n_rays, -1)
+    e_lo, e_hi = segment_bands(sh, seg)
+    o2, d2 = O[:, :2], D[:, :2]
+    a2 = (d2 ** 2).sum(1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s_mid = np.where(a2 > 0, -(o2 * d2).sum(1) / a2, s0)
+    once_seen = np.zeros(n_rays, bool)
+    stopped = np.zeros(n_rays, bool)
+    grow = lay.fiber_radius + sh.curl_amplitude + 1e-6
+    for i in range(lay.rings):
+        inner_r = max(0.0, e_lo * (lay.rho[i] - lay.max_dr[i]) - grow)
+        outer_r = e_hi * (lay.rho[i] + lay.max_dr[i]) + grow
+        ox0, ox1 = circle_interval(o2[:, 0], o2[:, 1], d2[:, 0], d2[:, 1], 0.0, 0.0, outer_r)
+        ix0, ix1 = circle_interval(o2[:, 0], o2[:, 1], d2[:, 0], d2[:, 1], 0.0, 0.0, inner_r)
+        stopped |= ox0 > ox1
+        twice = ~stopped & (ix0 <= ix1) & ~once_seen
+        once = ~stopped & ~twice
+        once_seen |= once
+        arcs = [(np.where(twice, ox0, ox0), np.where(twice, ix0, s_mid)),
+                (np.where(twice, ix1, s_mid), np.where(twice, ox1, ox1))]
+        j = np.arange(lay.n[i])
+        rest_x, rest_y, v_end = fiber_center(lay, seg.guide, np.full_like(j, i), j)
+        phase = fiber_randoms(lay, seg.guide, np.full_like(j, i), j, CH_CURL)
+        for sA, sB in arcs:
+            sA = np.maximum(sA, s0)
+            sB = np.minimum(sB, s1)
+            rows = np.nonzero(~stopped & (sA <= sB))[0]
+            step = max(1, chunk // max(1, len(j) * MAX_SUB))
+            for c in range(0, len(rows), step):
+                r = rows[c:c + step]
+                s = curved_fiber_test(sh, lay, seg, O[r, None, :], D[r, None, :], s0[r, None], s1[r, None],
+                                      rest_x[None], rest_y[None], phase[None], i, v_end[None], e_lo,
+                                      sA[r, None], sB[r, None])
+                k = np.argmin(s, axis=1)
+                sk = s[np.arange(len(r)), k]
+                better = sk < best_s[r]   # rings come in order; within a ring argmin takes the lower j
+                tie = (sk == best_s[r]) & np.isfinite(sk) & ((i < best_ring[r]) |
+                                                             ((i == best_ring[r]) & (k < best_j[r])))
+                upd = better | tie
+                best_s[r[upd]] = sk[upd]
+                best_ring[r[upd]] = i
+                best_j[r[upd]] = k[upd]
+    return best_s, best_ring, best_j

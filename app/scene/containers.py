@@ -26,17 +26,38 @@ SEGMENT_BYTES = SEGMENT_FLOATS * 4
 MAX_GUIDES = 1 << 24  # the guide index travels as a float32; integers above 2^24 are not exact
 
 
-def orthonormal_x(z: np.ndarray) -> np.ndarray:
-    """A unit vector perpendicular to each unit ``z`` (N,3), continuous everywhere but at z = -Z.
+# Every tangent frame field on the sphere has a singular direction (the hairy ball theorem). Frisvad's
+# basis puts it at -Z, and Duff et al.'s branchless fix jumps across the whole equator (z = 0), which is
+# where a guide along X lives. We use Frisvad's basis in a rotated space whose singular direction is
+# SINGULAR_AXIS: a direction far from +-X, +-Y, +-Z and their diagonals, so axis-aligned and nearly
+# axis-aligned guides get a frame that is smooth (no pattern jump) and well conditioned.
+SINGULAR_AXIS = np.array([-0.31, 0.53, -0.79]) / np.linalg.norm([-0.31, 0.53, -0.79])
 
-    Duff et al. 2017 ("Building an orthonormal basis, revisited"): no cross product with a fixed axis, so
-    it never degenerates when z is parallel to X (the thesis's expression 3.6 does).
-    """
-    z = np.atleast_2d(z).astype(np.float64)
-    sign = np.where(z[:, 2] >= 0.0, 1.0, -1.0)
-    a = -1.0 / (sign + z[:, 2])
-    b = z[:, 0] * z[:, 1] * a
-    return np.stack([1.0 + sign * z[:, 0] ** 2 * a, sign * b, -sign * z[:, 0]], axis=1)
+
+def _rotation_to_minus_z(q: np.ndarray) -> np.ndarray:
+    target = np.array([0.0, 0.0, -1.0])
+    v = np.cross(q, target)
+    c = float(np.dot(q, target))
+    k = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
+    return np.identity(3) + k + k @ k / (1.0 + c)
+
+
+_TO_SINGULAR = _rotation_to_minus_z(SINGULAR_AXIS)
+
+
+def orthonormal_x(z: np.ndarray) -> np.ndarray:
+    """A unit vector perpendicular to each unit ``z`` (N,3), smooth everywhere except within about
+    1e-3 radians of ``SINGULAR_AXIS`` (see above)."""
+    z = np.atleast_2d(np.asarray(z, np.float64))
+    zr = z @ _TO_SINGULAR.T                       # rotated so the singular direction is -Z
+    one_plus = 1.0 + zr[:, 2]
+    near = one_plus < 1e-6                        # at the singular direction itself: any perpendicular
+    safe = np.where(near, 1.0, one_plus)
+    x = np.stack([1.0 - zr[:, 0] ** 2 / safe, -zr[:, 0] * zr[:, 1] / safe, -zr[:, 0]], axis=1)
+    x = np.where(near[:, None], np.array([1.0, 0.0, 0.0]), x)
+    x = x @ _TO_SINGULAR                          # back to world space
+    x -= z * (x * z).sum(1, keepdims=True)
+    return x / np.linalg.norm(x, axis=1, keepdims=True)
 
 
 def _rotate_minimally(v: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
