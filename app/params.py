@@ -180,7 +180,7 @@ SPEC: tuple[Param, ...] = (
     P("look.shadow_density", float, 0.6, "how dark the inside of a container gets", 0.0, 1.0),
     P("look.light_azimuth", float, 35.0, "key light direction about the up axis", -180.0, 180.0, "degrees"),
     P("look.light_elevation", float, 40.0, "key light height", -89.0, 89.0, "degrees"),
-    P("look.light_intensity", float, 2.5, "key light intensity", 0.0, 100.0),
+    P("look.light_intensity", float, 1.8, "key light intensity", 0.0, 100.0),
     P("look.ambient", float, 0.25, "environment fill intensity", 0.0, 10.0),
     P("look.background", tuple, (0.06, 0.065, 0.075), "background colour (linear RGB)", 0.0, 1.0),
     P("look.exposure", float, 0.0, "exposure before the tone map", -10.0, 10.0, "stops"),

@@ -38,7 +38,11 @@ CHANGES = [("fibers.rings", 6), ("fibers.phi_step", 6.0), ("fibers.phi_increment
            ("fibers.angular_jitter", 0.0), ("fibers.length_jitter", 0.8), ("fibers.hash", "thesis"),
            ("fibers.seed", 7), ("scene.taper", 0.5), ("scene.bend", 40.0), ("look.color", (0.1, 0.2, 0.9)),
            ("look.roughness", 0.9), ("look.light_azimuth", -120.0), ("look.self_shadow", "off"),
-           ("camera.azimuth", 80.0)]
+           ("camera.azimuth", 80.0), ("look.model", "marschner"), ("look.color_mode", "melanin"),
+           ("look.exposure", 1.0), ("look.self_shadow", "traced"), ("look.shadow_density", 0.1),
+           ("look.ambient", 2.0), ("look.tint_variation", 1.0), ("quality.supersample", 2),
+           ("quality.msaa", 4), ("shape.twist", 0.5), ("shape.curl_amplitude", 0.3),
+           ("shape.ellipsoid", 0.8)]
 
 
 @pytest.mark.parametrize("key,value", CHANGES, ids=[c[0] for c in CHANGES])
@@ -54,11 +58,18 @@ def test_a_changed_parameter_changes_the_image(renderer, key, value):
     assert changed > 0.002, f"{key} = {value!r} changed only {changed:.4%} of the pixels"
 
 
+LOOKS = [{}, {"look.model": "marschner"}, {"look.model": "marschner", "look.color_mode": "melanin",
+                                             "look.melanin": 1.0, "look.self_shadow": "traced"},
+         {"shape.curl_amplitude": 0.5, "shape.twist": 2.0, "shape.ellipsoid": 1.0, "look.exposure": 10.0}]
+
+
 @pytest.mark.parametrize("mode", ["fast", "exact", "brute"])
-def test_float_outputs_are_finite(renderer, mode):
+@pytest.mark.parametrize("look", range(len(LOOKS)))
+def test_float_outputs_are_finite(renderer, mode, look):
     p, scene, cam = setup(renderer, {"scene.taper": 0.7, "scene.segments": 4, "scene.bend": 90.0,
-                                     "fibers.radial_jitter": 1.0, "fibers.angular_jitter": 1.0})
-    frame = renderer.render(p, cam, SIZE, outputs=("geom", "cost", "ids"), mode=mode)
+                                     "fibers.radial_jitter": 1.0, "fibers.angular_jitter": 1.0, **LOOKS[look]})
+    frame = renderer.render(p, cam, SIZE, outputs=("geom", "cost", "ids", "color"), mode=mode)
+    assert frame.hit.any() and np.any(frame.color[frame.hit] > 0)
     assert np.isfinite(frame.geom).all() and np.isfinite(frame.cost).all()
     n = frame.geom[..., :3][frame.hit]
     assert np.allclose(np.linalg.norm(n, axis=-1), 1.0, atol=1e-3)

@@ -67,18 +67,37 @@ class Camera:
         return np.broadcast_to(self.position, d.shape).copy(), d
 
     @staticmethod
-    def from_params(p: Params, scene: Scene) -> "Camera":
-        """Orbit camera about the scene centre (plus ``camera.target``); distance 0 frames the scene."""
+    def from_params(p: Params, scene: Scene, aspect: float = 16 / 9) -> "Camera":
+        """Orbit camera about the scene centre (plus ``camera.target``). Distance 0 frames the scene: the
+        nearest distance at which all eight corners of its bounding box fit the view, plus a margin."""
         lo, hi = scene.bounds()
         centre = 0.5 * (lo + hi)
         radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-12)
         fov = p["camera.fov"]
-        dist = p["camera.distance"] or radius / math.sin(math.radians(min(fov, 120.0)) / 2) * 1.05
         az, el = math.radians(p["camera.azimuth"]), math.radians(p["camera.elevation"])
         direction = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
         target = centre + np.asarray(p["camera.target"], np.float64)
+        dist = p["camera.distance"] or _framing_distance(scene, target, direction, fov, aspect)
         near = p["camera.near"] or max(dist - 2.0 * radius, dist * 1e-4, 1e-9)
         far = p["camera.far"] or dist + 2.0 * radius
         if far <= near:
             far = near * 10
         return Camera(target + dist * direction, target, fov, near, far)
+
+
+def _framing_distance(scene: Scene, target, direction, fov: float, aspect: float, margin: float = 1.06) -> float:
+    """Smallest distance along ``direction`` from ``target`` at which every container end point (and its
+    radius) fits the view: tighter than the bounding box, whose corners are often empty."""
+    probe = Camera(target + direction, target, fov)
+    right, up, forward = probe.basis()
+    th = math.tan(math.radians(fov) / 2)
+    seg = scene.segments.astype(np.float64)
+    pts = np.concatenate([seg[:, 0:3], seg[:, 4:7]]) + scene.origin
+    rad = np.concatenate([seg[:, 3], seg[:, 7]])
+    r = pts - target
+    toward = r @ direction + rad                # how far each point sits toward the camera
+    lateral_x = (np.abs(r @ right) + rad) / (th * aspect)
+    lateral_y = (np.abs(r @ up) + rad) / th
+    need = np.maximum(lateral_x, lateral_y) * margin + toward
+    extent = float(np.linalg.norm(pts.max(0) - pts.min(0))) + 2 * float(rad.max())
+    return float(max(need.max(), extent * 0.05, 1e-9))

@@ -23,8 +23,9 @@ import moderngl
 import numpy as np
 
 from .. import reference
+from . import look
 from ..gl.shaders import ProgramCache
-from ..params import Params
+from ..params import ParamError, Params
 from ..scene.containers import SEGMENT_BYTES, Scene
 from .camera import Camera
 
@@ -36,6 +37,14 @@ MAX_SUB = 16                      # chord pieces per curved-fiber test (glsl/fib
 BRUTE_CHUNK_SHAPED = (LOOP_CAP - 4 * MAX_RINGS) // (2 * (MAX_SUB + 1))
 TWIST_PATTERNS = {"uniform": 0, "ramped": 1, "alternating": 2}
 CURL_PATTERNS = {"helix": 0, "wave": 1}
+SHADING_MODELS = {"kajiya_kay": 0, "marschner": 1}
+SHADOW_MODES = {"off": 0, "density": 1, "traced": 2}
+# standard MSAA sample positions (pixel units about the centre), as GL implementations place them
+MSAA_PATTERNS = {
+    2: [(4, 4), (-4, -4)],
+    4: [(-2, -6), (6, -2), (-6, 2), (2, 6)],
+    8: [(1, -3), (-1, 3), (5, 1), (-3, -5), (-5, 5), (-7, -1), (3, 7), (7, -7)],
+}
 MODES = {"fast": 0, "exact": 1, "brute": 2}
 
 # A unit cube as 12 triangles, wound counter-clockwise seen from outside.
@@ -52,6 +61,7 @@ _CUBE = np.array([
 @dataclass
 class Frame:
     color: np.ndarray | None = None
+    coverage: np.ndarray | None = None     # (H, W) float32: fraction of the pixel covered by fibers
     ids: np.ndarray | None = None
     geom: np.ndarray | None = None
     cost: np.ndarray | None = None
@@ -97,18 +107,10 @@ class Renderer:
 
     def render_quality(self, p: Params, cam: Camera, size: tuple[int, int], *, outputs=("color",),
                        mode: str | None = None) -> Frame:
-        """Render honouring the quality parameters: ``render_scale`` (cast fewer rays, scale the picture
-        up) and ``supersample`` (average n x n stratified rays per pixel for colour; ids, geometry and cost
-        come from the centre ray)."""
+        """Render honouring quality.render_scale too: cast fewer rays and scale the picture up."""
         scale = p["quality.render_scale"]
         inner = (max(1, round(size[0] * scale)), max(1, round(size[1] * scale)))
-        n = p["quality.supersample"]
         frame = self.render(p, cam, inner, outputs=outputs, mode=mode)
-        if n > 1 and "color" in outputs:
-            acc = np.zeros(frame.color.shape, np.float64)
-            for offset in supersample_offsets(n):
-                acc += self.render(p, cam, inner, outputs=("color",), offset=offset, mode=mode).color
-            frame.color = np.round(acc / (n * n)).astype(np.uint8)
         if inner != tuple(size):
             frame = _upscale(frame, size)
         return frame
@@ -135,6 +137,34 @@ class Renderer:
                 self._targets[key] = self.ctx.framebuffer(att, self.ctx.depth_renderbuffer(size))
         return self._targets[key]
 
+    def _msaa_samples(self, p: Params) -> int:
+        n = p["quality.msaa"]
+        if n == 0:
+            return 0
+        if n not in MSAA_PATTERNS:
+            raise ParamError(f"quality.msaa = {n} is not allowed: use 0, 2, 4 or 8", key="quality.msaa")
+        if n > self.ctx.max_samples:
+            raise ParamError(f"quality.msaa = {n}: this OpenGL ({self.ctx.info['GL_RENDERER']}) supports at most "
+                             f"{self.ctx.max_samples} samples", key="quality.msaa")
+        return n
+
+    def _prepare_state(self) -> None:
+        ctx = self.ctx
+        ctx.disable(moderngl.BLEND)
+        ctx.enable(moderngl.CULL_FACE)
+        ctx.front_face = "ccw"
+        ctx.cull_face = "front"     # draw the far faces: the image stays whole with the camera inside a box
+
+    def _msaa_targets(self, size: tuple[int, int], samples: int):
+        key = (size, "msaa", samples)
+        if key not in self._targets:
+            ms = self.ctx.framebuffer([self.ctx.renderbuffer(size, 4, samples=samples)],
+                                      self.ctx.depth_renderbuffer(size, samples=samples))
+            resolved = self.ctx.framebuffer([self.ctx.texture(size, 4, dtype="f1")])
+            self._targets[key] = ms
+            self._targets[key + ("resolved",)] = resolved
+        return self._targets[key], self._targets[key + ("resolved",)]
+
     def release_targets(self) -> None:
         # bind a live framebuffer first: moderngl restores the previous binding after creating a
         # framebuffer, and rebinding a released one is an invalid operation
@@ -148,10 +178,13 @@ class Renderer:
         self._targets.clear()
 
     # --- drawing -----------------------------------------------------------------------------------
-    def program(self, p: Params, mode: str, cost: bool) -> moderngl.Program:
+    def program(self, p: Params, mode: str, cost: bool, supersample: int = 1,
+                msaa: int = 0) -> moderngl.Program:
         defines = {"TRAVERSAL": MODES[mode], "MAX_RINGS": MAX_RINGS, "MAX_SUB": MAX_SUB,
                    "HASH_THESIS": int(p["fibers.hash"] == "thesis"), "COST_PASS": int(cost),
-                   "SHAPED": int(is_shaped(p))}
+                   "SHAPED": int(is_shaped(p)), "SHADING_MODEL": SHADING_MODELS[p["look.model"]],
+                   "SHADOW_MODE": SHADOW_MODES[p["look.self_shadow"]], "SUPERSAMPLE": supersample,
+                   "MSAA_SAMPLES": msaa}
         return self.programs.get(self.ctx, "stages/container.vert", "stages/container.frag", defines)
 
     def _set_uniforms(self, prog: moderngl.Program, p: Params, cam: Camera, size, offset) -> None:
@@ -173,9 +206,10 @@ class Renderer:
             "uCamRight": tuple(right * th * w / h), "uCamUp": tuple(up * th), "uCamForward": tuple(forward),
             "uSceneFromCamera": tuple(self.scene.origin - cam.position),
             "uLightDir": tuple(light_direction(p)), "uLightIntensity": p["look.light_intensity"],
-            "uAmbient": p["look.ambient"], "uBaseColor": p["look.color"], "uRoughness": p["look.roughness"],
+            "uAmbient": p["look.ambient"], "uBaseColor": look.base_color(p), "uRoughness": p["look.roughness"],
+            "uExposure": p["look.exposure"], "uFiberDensity": look.fiber_density(p, lay.fibers_per_container),
             "uTintVariation": p["look.tint_variation"], "uRoughnessVariation": p["look.roughness_variation"],
-            "uShadowDensity": p["look.shadow_density"] if p["look.self_shadow"] != "off" else 0.0,
+            "uShadowDensity": p["look.shadow_density"],
             "uEllipsoid": p["shape.ellipsoid"], "uTwist": p["shape.twist"],
             "uTwistPattern": TWIST_PATTERNS[p["shape.twist_pattern"]],
             "uCurlAmplitude": p["shape.curl_amplitude"] / K, "uCurlFrequency": p["shape.curl_frequency"],
@@ -184,7 +218,12 @@ class Renderer:
         for name, value in values.items():
             if name in prog:
                 prog[name].value = value
-        for name, arr in (("uRingA", ring_a), ("uRingB", ring_b), ("uRingN", ring_n)):
+        samples = np.zeros((16, 2), np.float32)
+        pattern = MSAA_PATTERNS.get(p["quality.msaa"])
+        if pattern:
+            samples[:len(pattern)] = np.array(pattern) / 16.0
+        for name, arr in (("uRingA", ring_a), ("uRingB", ring_b), ("uRingN", ring_n),
+                          ("uSampleOffsets", samples)):
             if name in prog:
                 prog[name].write(arr.tobytes())
         if "uClipFromCamera" in prog:
@@ -206,19 +245,24 @@ class Renderer:
         return draws
 
     def render(self, p: Params, cam: Camera, size: tuple[int, int], *, outputs=("color",),
-               offset=(0.0, 0.0), mode: str | None = None) -> Frame:
-        """Render the scene. ``outputs`` is any of color, ids, geom, cost, iters."""
+               offset=(0.0, 0.0), mode: str | None = None, antialias: bool = True) -> Frame:
+        """Render the scene. ``outputs`` is any of color, ids, geom, cost, iters.
+
+        With ``antialias``, colour honours quality.supersample (n x n rays per pixel in the shader) or
+        quality.msaa (one ray per MSAA sample, shaded once). Brute force always casts one ray per pixel:
+        it is the reference for ids, and n^2 rays would cost n^2 times its loop budget.
+        """
         if self.scene is None:
             raise RuntimeError("Renderer.render: call set_scene first")
         mode = mode or p["quality.mode"]
         ctx = self.ctx
         frame = Frame()
         size = (int(size[0]), int(size[1]))
-        ctx.disable(moderngl.BLEND)
-        ctx.enable(moderngl.CULL_FACE)
-        ctx.front_face = "ccw"
-        ctx.cull_face = "front"        # draw the far faces: the image stays whole with the camera inside a box
-        if {"color", "ids", "geom"} & set(outputs):
+        self._prepare_state()
+        supersample = p["quality.supersample"] if antialias and mode != "brute" else 1
+        msaa = self._msaa_samples(p) if antialias and mode != "brute" else 0
+        wants_pass = {"ids", "geom"} & set(outputs) or ("color" in outputs and not msaa)
+        if wants_pass:
             fbo = self._target(size, cost=False)
             fbo.use()
             ctx.viewport = (0, 0) + size
@@ -228,18 +272,27 @@ class Renderer:
             _clear_depth(fbo)
             ctx.enable(moderngl.DEPTH_TEST)
             ctx.depth_func = "<"
-            prog = self.program(p, mode, cost=False)
+            prog = self.program(p, mode, cost=False, supersample=supersample)
             self._set_uniforms(prog, p, cam, size, offset)
             frame.draws += self._draw(prog, p, mode)
-            if "color" in outputs:
-                rgba = _read(fbo, 0, 4, "f1", size)
-                bg = np.asarray(p["look.background"])
-                bg8 = np.round(np.clip(bg, 0, 1) ** (1 / 2.2) * 255).astype(np.uint8)
-                frame.color = np.where(rgba[..., 3:4] > 0, rgba[..., :3], bg8)
+            if "color" in outputs and not msaa:
+                frame.color, frame.coverage = _composite(_read(fbo, 0, 4, "f1", size), p)
             if "ids" in outputs:
                 frame.ids = _read(fbo, 1, 4, "u4", size)
             if "geom" in outputs:
                 frame.geom = _read(fbo, 2, 4, "f4", size)
+        if "color" in outputs and msaa:
+            ms, resolved = self._msaa_targets(size, msaa)
+            ms.use()
+            ctx.viewport = (0, 0) + size
+            ms.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+            ctx.enable(moderngl.DEPTH_TEST)
+            ctx.depth_func = "<"
+            prog = self.program(p, mode, cost=False, msaa=msaa)
+            self._set_uniforms(prog, p, cam, size, offset)
+            frame.draws += self._draw(prog, p, mode)
+            ctx.copy_framebuffer(resolved, ms)
+            frame.color, frame.coverage = _composite(_read(resolved, 0, 4, "f1", size), p)
         for kind in ("cost", "iters"):
             if kind not in outputs:
                 continue
@@ -295,13 +348,21 @@ def _upscale(frame: Frame, size: tuple[int, int]) -> Frame:
     out = Frame(draws=frame.draws)
     if frame.color is not None:
         out.color = np.asarray(Image.fromarray(frame.color).resize(size, Image.BILINEAR))
-    for name in ("ids", "geom", "cost", "iters"):
+    for name in ("coverage", "ids", "geom", "cost", "iters"):
         a = getattr(frame, name)
         if a is not None:
             ys = (np.arange(h) * a.shape[0] // h)[:, None]
             xs = (np.arange(w) * a.shape[1] // w)[None, :]
             setattr(out, name, a[ys, xs])
     return out
+
+
+def _composite(rgba: np.ndarray, p: Params) -> tuple[np.ndarray, np.ndarray]:
+    """Premultiplied fiber colour over the background (8-bit, display space), and the coverage."""
+    bg = np.round(np.clip(np.asarray(p["look.background"]), 0, 1) ** (1 / 2.2) * 255)
+    a = rgba[..., 3:4].astype(np.float64) / 255.0
+    color = np.clip(np.round(rgba[..., :3] + (1.0 - a) * bg), 0, 255).astype(np.uint8)
+    return color, a[..., 0].astype(np.float32)
 
 
 def _read(fbo: moderngl.Framebuffer, attachment: int, components: int, dtype: str, size) -> np.ndarray:

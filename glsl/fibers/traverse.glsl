@@ -38,6 +38,9 @@ struct FiberHit {
 int gTests = 0;
 int gPieces = 0;
 int gIters = 0;
+int gMode = TRAVERSAL;          // a shadow ray switches to 0 (any hit) for itself
+int gSkipRing = -1;             // a shadow ray starts on this fiber: never count it as a blocker
+int gSkipFiber = -1;
 uniform ivec2 uBruteRange;
 
 #if SHAPED
@@ -72,6 +75,7 @@ float fiber_test(Segment seg, UnitRay ur, vec2 c, float vEnd, out int kind) {
 }
 
 void test_fiber(Segment seg, UnitRay ur, int ring, int j, inout FiberHit best) {
+    if (ring == gSkipRing && j == gSkipFiber) return;
     vec2 c;
     float vEnd;
     fiber_center(seg.guide, ring, j, c, vEnd);
@@ -120,9 +124,7 @@ bool visit_piece(Segment seg, UnitRay ur, int i, float sA, float sB, inout Fiber
         int j = j0 + k * dir;
         j -= n * int(floor(float(j) / float(n)));   // into [0, n)
         test_fiber(seg, ur, i, j, best);
-#if TRAVERSAL == 0
-        if (best.s < INF) return true;      // fast: the first fiber found wins
-#endif
+        if (gMode == 0 && best.s < INF) return true;   // fast: the first fiber found wins
     }
     return false;
 }
@@ -166,17 +168,15 @@ bool visit_shaped(Segment seg, UnitRay ur, int i, float sA, float sB, Bands band
     float a = max(sA, ur.s0);
     float b = min(sB, ur.s1);
     if (!(a <= b)) return false;
-#if TRAVERSAL != 2
-    if (a >= best.s) return true;
-#endif
+    if (gMode != 2 && a >= best.s) return true;
     gPieces++;
     int n = uRingN[i].x;
     int j0, count, dir;
-#if TRAVERSAL == 2
-    j0 = max(0, uBruteRange.x - uRingN[i].y);
-    count = max(0, min(n, uBruteRange.y - uRingN[i].y) - j0);
-    dir = 1;
-#else
+    if (gMode == 2) {
+        j0 = max(0, uBruteRange.x - uRingN[i].y);
+        count = max(0, min(n, uBruteRange.y - uRingN[i].y) - j0);
+        dir = 1;
+    } else {
     vec2 pA = ur.O.xy + a * ur.D.xy;
     vec2 pB = ur.O.xy + b * ur.D.xy;
     float thA = dot(pA, pA) > 0.0 ? atan(pA.y, pA.x) : atan(pB.y, pB.x);
@@ -193,11 +193,12 @@ bool visit_shaped(Segment seg, UnitRay ur, int i, float sA, float sB, Bands band
     j0 = dir > 0 ? int(ceil(first)) : int(floor(first));
     int j1 = dir > 0 ? int(floor(last)) : int(ceil(last));
     count = min(max(0, (j1 - j0) * dir + 1), n);
-#endif
+    }
     for (int k = 0; k < count; k++) {
         gIters++;
         int j = j0 + k * dir;
         j -= n * int(floor(float(j) / float(n)));
+        if (i == gSkipRing && j == gSkipFiber) continue;
         vec2 rest;
         float vEnd;
         fiber_center(seg.guide, i, j, rest, vEnd);
@@ -215,9 +216,7 @@ bool visit_shaped(Segment seg, UnitRay ur, int i, float sA, float sB, Bands band
             best.c = fiber_center_at(rest, v, i, phase);
             best.dcdv = (fiber_center_at(rest, v + 1e-3, i, phase) - fiber_center_at(rest, v - 1e-3, i, phase)) / 2e-3;
         }
-#if TRAVERSAL == 0
-        if (best.s < INF) return true;
-#endif
+        if (gMode == 0 && best.s < INF) return true;
     }
     return false;
 }
@@ -265,7 +264,7 @@ FiberHit traverse(Segment seg, UnitRay ur) {
 #endif
     FiberHit best = no_hit();
     int K = uRings;
-#if TRAVERSAL == 2
+    if (gMode == 2) {
     for (int i = 0; i < K; i++) {
         gIters++;
         ivec2 nf = uRingN[i];
@@ -277,7 +276,7 @@ FiberHit traverse(Segment seg, UnitRay ur) {
         }
     }
     return best;
-#else
+    }
     vec2 o2 = ur.O.xy;
     vec2 d2 = ur.D.xy;
     float a = dot(d2, d2);
@@ -301,5 +300,4 @@ FiberHit traverse(Segment seg, UnitRay ur) {
         if (visit_piece(seg, ur, i, backStack[i].x, backStack[i].y, best)) return best;
     }
     return best;
-#endif
 }

@@ -1,6 +1,7 @@
 // container.glsl: a container segment (hair cylinder) and the projective "unit space" inside it.
 //   Segment  make_segment(vec4 a, vec4 b, vec4 c, vec4 d, vec4 e)      from the per-instance attributes
 //   bool     to_unit_space(Segment seg, vec3 ro, vec3 rd, float tNear, out UnitRay ur)
+//   bool     clip_to_container(Segment seg, inout UnitRay ur)     [s0, s1] of a unit-space ray
 //   float    unit_to_world_t(Segment seg, UnitRay ur, float s)
 //   float    z_cut_unit(Segment seg, float vEnd)
 //   float    unit_to_v(Segment seg, float zUnit)
@@ -75,6 +76,8 @@ void clip_half_space(vec3 O, vec3 D, vec3 m, float c, inout float s0, inout floa
     if (md < 0.0) s0 = max(s0, tp); else s1 = min(s1, tp);
 }
 
+bool clip_to_container(Segment seg, inout UnitRay ur);
+
 bool to_unit_space(Segment seg, vec3 ro, vec3 rd, float tNear, out UnitRay ur) {
     mat3 localFromWorld = transpose(mat3(seg.ex, seg.ey, seg.ez));
     vec3 o = localFromWorld * (ro - seg.p0);
@@ -94,7 +97,12 @@ bool to_unit_space(Segment seg, vec3 ro, vec3 rd, float tNear, out UnitRay ur) {
     vec3 D = d * ur.wO - ur.o * (seg.kappa * d.z);
     ur.Dlen = length(D);
     ur.D = D / ur.Dlen;
-    // The container in unit space: unit cylinder, root-side joint plane, tip-side joint plane.
+    return clip_to_container(seg, ur);
+}
+
+// The stretch [s0, s1] (s >= 0) of the unit-space ray O + s D inside the container: unit cylinder,
+// root-side joint plane, tip-side joint plane (planes stay planes under the projective map).
+bool clip_to_container(Segment seg, inout UnitRay ur) {
     vec2 cyl = circle_interval(ur.O.xy, ur.D.xy, vec2(0.0), 1.0);
     ur.s0 = max(cyl.x, 0.0);
     ur.s1 = cyl.y;
