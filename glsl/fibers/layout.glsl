@@ -23,6 +23,23 @@ uniform float uFiberRadius;
 uniform float uLengthJitter;
 uniform uint uSeed;
 
+// fiber_key(seed, guide, ring, j) = lowbias32(ring_key(seed, guide, ring) ^ j): the ring part is the same
+// for every fiber a traversal visits on one ring, so it is kept and reused (same values, 3 rounds fewer).
+uint gKeyGuide = 0xffffffffu;
+int gKeyRing = -1;
+uint gRingKey;
+
+uint cached_fiber_key(uint guide, int ring, int j) {
+    if (ring != gKeyRing || guide != gKeyGuide) {
+        uint h = lowbias32(uSeed + 0x9e3779b9u);
+        h = lowbias32(h ^ guide);
+        gRingKey = lowbias32(h ^ uint(ring));
+        gKeyRing = ring;
+        gKeyGuide = guide;
+    }
+    return lowbias32(gRingKey ^ uint(j));
+}
+
 // The three random numbers that place a fiber: radial, angular, length.
 vec3 fiber_placement_randoms(uint guide, int ring, int j) {
 #if HASH_THESIS
@@ -31,7 +48,7 @@ vec3 fiber_placement_randoms(uint guide, int ring, int j) {
                 thesis_random(slotDeg, float(ring), float(CH_ANGULAR)),
                 thesis_random(slotDeg, float(ring), float(CH_LENGTH)));
 #else
-    uint key = fiber_key(uSeed, guide, uint(ring), uint(j));
+    uint key = cached_fiber_key(guide, ring, j);
     return vec3(key_random(key, CH_RADIAL), key_random(key, CH_ANGULAR), key_random(key, CH_LENGTH));
 #endif
 }
@@ -41,7 +58,7 @@ float fiber_curl_phase(uint guide, int ring, int j) {
     float slotDeg = degrees(uRingA[ring].z + float(j) * uRingA[ring].y);
     return thesis_random(slotDeg, float(ring), float(CH_CURL));
 #else
-    return key_random(fiber_key(uSeed, guide, uint(ring), uint(j)), CH_CURL);
+    return key_random(cached_fiber_key(guide, ring, j), CH_CURL);
 #endif
 }
 
