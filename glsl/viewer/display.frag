@@ -4,11 +4,11 @@
 // the integer views (ids, rings) and normals/depth are fetched at the nearest texel.
 //   VIEW 0 shaded    accumulated colour / samples, background where coverage < 1
 //   VIEW 1 fiber ids hash of (guide + 1, ring, fiber) to a colour
-//   VIEW 2 rings     ring index, outer ring 0 -> inner ring K-1 on the heat scale
+//   VIEW 2 rings     ring index on the heat scale: outer ring 0 yellow -> inner ring K-1 purple
 //   VIEW 3 normals   world normal * 0.5 + 0.5
 //   VIEW 4 depth     ray distance, near (white) to far (black) over uDepthRange
 //   VIEW 5 heat map  fiber tests per pixel on the heat scale, 0 .. uHeatMax
-//   VIEW 6 proxies   the shaded image dimmed (the container wireframes are drawn over it by proxy.*)
+//   VIEW 6 proxies   the shaded image faded toward the background (proxy.* draws the wireframes over it)
 
 #include "viewer/palette.glsl"
 
@@ -38,7 +38,7 @@ void main() {
     vec3 c = bg;
     if (uView == 0 || uView == 6) {
         c = shaded();
-        if (uView == 6) c *= uDim;
+        if (uView == 6) c = mix(bg, c, uDim);   // faded, so the wireframes read over it
     } else if (uView == 5) {
         vec4 cost = texture(uCost, vUv);
         c = cost.z > 0.0 ? heat_color(cost.x / max(uHeatMax, 1e-6)) : bg * 0.5;
@@ -51,7 +51,7 @@ void main() {
                 c = id_color(id.xyz);
             } else if (uView == 2) {
                 float r = float(id.y) / float(max(uRings - 1, 1));
-                c = heat_color(r) * ((id.y & 1u) == 0u ? 1.0 : 0.8);   // neighbours told apart
+                c = heat_color(1.0 - r) * ((id.y & 1u) == 0u ? 1.0 : 0.75);   // neighbours told apart
             } else if (uView == 3) {
                 c = normalize(geom.xyz) * 0.5 + 0.5;
             } else if (uView == 4) {

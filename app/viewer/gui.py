@@ -1,0 +1,765 @@
+"""The viewer's panels: ``gui(state)`` reads and edits ``AppState`` and nothing else.
+
+Every parameter widget is built from ``app.params.SPEC`` (kind, bounds, choices, unit, help), so a new
+parameter shows up without touching this file; a new group gets its own section. Things that need the
+GPU or the window (screenshots, OSL export, quitting) are queued with ``state.request``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from imgui_bundle import imgui
+
+from ..params import GROUPS, SPEC, Param, Params, max_fiber_radius
+from ..presets import bundled_names, presets_dir
+from .display import HEAT_STOPS
+from .state import (EXPLICIT_FORMULA, FRAME_PATHS, INTERACTIVE_MODES, INTERACTIVE_SCALES, VIEWS,
+                    AppState, is_groom_path)
+
+# Panel sections: title -> parameter groups. Groups not listed (added to SPEC later) get their own.
+SECTIONS: tuple[tuple[str, tuple[str, ...]], ...] = (
+    ("Containers", ("scene", "fibers")),
+    ("Shape", ("shape",)),
+    ("Look", ("look",)),
+    ("Quality", ("quality",)),
+    ("Camera", ("camera",)),
+)
+
+# When a parameter has no effect, its widget is dimmed (still editable) and the tooltip says why.
+RELEVANCE: dict[str, tuple[Callable[[Params], bool], str]] = {
+    "look.color": (lambda p: p["look.color_mode"] == "rgb", "look.color_mode is not 'rgb'"),
+    "look.melanin": (lambda p: p["look.color_mode"] == "melanin", "look.color_mode is not 'melanin'"),
+    "look.melanin_redness": (lambda p: p["look.color_mode"] == "melanin", "look.color_mode is not 'melanin'"),
+    "look.shadow_density": (lambda p: p["look.self_shadow"] != "off", "look.self_shadow is 'off'"),
+    "scene.groom_file": (lambda p: p["scene.generator"] == "groom", "scene.generator is not 'groom'"),
+    "scene.groom_up": (lambda p: p["scene.generator"] == "groom", "scene.generator is not 'groom'"),
+    "scene.groom_scale": (lambda p: p["scene.generator"] == "groom", "scene.generator is not 'groom'"),
+    "scene.groom_cluster": (lambda p: p["scene.generator"] == "groom", "scene.generator is not 'groom'"),
+    "scene.count": (lambda p: p["scene.generator"] not in ("single", "groom"), "single and groom ignore it"),
+    "scene.seed": (lambda p: p["scene.generator"] in ("carpet", "curved"), "only carpet and curved place randomly"),
+    "scene.bend": (lambda p: p["scene.segments"] > 1, "scene.segments is 1 (a straight guide)"),
+    "shape.curl_frequency": (lambda p: p["shape.curl_amplitude"] > 0, "shape.curl_amplitude is 0"),
+    "shape.curl_pattern": (lambda p: p["shape.curl_amplitude"] > 0, "shape.curl_amplitude is 0"),
+    "shape.twist_pattern": (lambda p: p["shape.twist"] != 0, "shape.twist is 0"),
+}
+
+SHORTCUTS: tuple[tuple[str, str], ...] = (
+    ("LMB drag", "orbit"),
+    ("MMB drag / Shift+LMB drag", "pan"),
+    ("Wheel / Ctrl+LMB drag / + -", "zoom (trackpad: Ctrl+drag, + -)"),
+    ("Arrows / Shift+Arrows", "orbit 15 degrees / pan"),
+    ("F", "frame the whole scene"),
+    ("Home / R", "reset the camera to the preset's"),
+    ("T", "turntable on/off"),
+    ("1 .. 7", "views: " + ", ".join(VIEWS)),
+    ("Tab", "show/hide the panel"),
+    ("Ctrl+O / Ctrl+S / Ctrl+Shift+S", "open / save / save as"),
+    ("Ctrl+Z / Ctrl+Shift+Z, Ctrl+Y", "undo / redo (parameters, not camera moves)"),
+    ("F12", "screenshot"),
+    ("F1", "this help"),
+    ("Ctrl+Q", "quit"),
+    ("Ctrl+click a slider", "type a value"),
+    ("Right-click a field", "reset to default"),
+)
+
+RED = imgui.ImVec4(1.0, 0.42, 0.38, 1.0)
+AMBER = imgui.ImVec4(1.0, 0.78, 0.35, 1.0)
+DIM = imgui.ImVec4(0.6, 0.6, 0.6, 1.0)
+
+
+@dataclass
+class Layout:
+    """Where the render goes, in points (imgui's logical pixels), top-left origin."""
+
+    x: float
+    y: float
+    w: float
+    h: float
+
+
+def gui(state: AppState) -> Layout:
+    """Draw every panel for this frame; returns the viewport area left for the render."""
+    scratch = state_scratch(state)
+    io = imgui.get_io()
+    _shortcuts(state, scratch)
+    menu_h = _menu_bar(state, scratch)
+    dw, dh = io.display_size.x, io.display_size.y
+    panel_w = min(state.view.panel_width * _ui_scale(), dw * 0.6) if state.view.show_panel else 0.0
+    if state.view.show_panel:
+        _panel(state, scratch, dw - panel_w, menu_h, panel_w, dh - menu_h)
+    layout = Layout(0.0, menu_h, max(dw - panel_w, 1.0), max(dh - menu_h, 1.0))
+    if state.view.show_stats:
+        _stats_overlay(state, layout)
+    if state.view.view == "heat map":
+        _heat_legend(state, layout)
+    if state.view.show_help:
+        _help_window(state)
+    _dialogs(state, scratch)
+    if not imgui.is_any_item_active():
+        state.end_gesture()
+        state.dragging = False
+    else:
+        state.dragging = True
+    return layout
+
+
+def state_scratch(state: AppState) -> dict[str, Any]:
+    """Text typed into dialogs and fields before it is applied (plain values kept on the state)."""
+    if not hasattr(state, "_gui_scratch"):
+        object.__setattr__(state, "_gui_scratch", {"open_popup": None})
+    return state._gui_scratch  # type: ignore[attr-defined]
+
+
+def _ui_scale() -> float:
+    return imgui.get_style().font_scale_dpi or 1.0
+
+
+# --- keyboard -----------------------------------------------------------------------------------------
+
+def _shortcuts(state: AppState, scratch: dict[str, Any]) -> None:
+    io = imgui.get_io()
+    if io.want_text_input or imgui.is_popup_open("", imgui.PopupFlags_.any_popup_id):
+        return
+    ctrl, shift = io.key_ctrl, io.key_shift
+    K = imgui.Key
+    pressed = lambda k: imgui.is_key_pressed(k, False)  # noqa: E731
+    if pressed(K.f1):
+        state.view.show_help = not state.view.show_help
+    if pressed(K.tab):
+        state.view.show_panel = not state.view.show_panel
+    if pressed(K.f12):
+        scratch["open_popup"] = "Screenshot"
+    if ctrl:
+        if pressed(K.o):
+            scratch["open_popup"] = "Open preset"
+        if pressed(K.s):
+            if shift or state.preset_path is None:
+                scratch["open_popup"] = "Save preset as"
+            else:
+                state.save()
+        if pressed(K.z):
+            state.redo() if shift else state.undo()
+        if pressed(K.y):
+            state.redo()
+        if pressed(K.q):
+            state.request("quit")
+        return
+    digits = (K._1, K._2, K._3, K._4, K._5, K._6, K._7)
+    for i, key in enumerate(digits[:len(VIEWS)]):
+        if pressed(key):
+            state.view.view = VIEWS[i]
+            state.touch()
+
+
+# --- menu bar -----------------------------------------------------------------------------------------
+
+def _menu_bar(state: AppState, scratch: dict[str, Any]) -> float:
+    if not imgui.begin_main_menu_bar():
+        return 0.0
+    if imgui.begin_menu("File"):
+        if imgui.menu_item_simple("Open...", "Ctrl+O"):
+            scratch["open_popup"] = "Open preset"
+        names = bundled_names()
+        if imgui.begin_menu("Open bundled preset", bool(names)):
+            for name in names:
+                if imgui.menu_item_simple(name):
+                    state.open(name)
+            imgui.end_menu()
+        if not names:
+            imgui.set_item_tooltip("no bundled presets installed yet (presets/*.toml)")
+        imgui.separator()
+        if imgui.menu_item_simple("Save", "Ctrl+S"):
+            if state.preset_path is None:
+                scratch["open_popup"] = "Save preset as"
+            else:
+                state.save()
+        if imgui.menu_item_simple("Save As...", "Ctrl+Shift+S"):
+            scratch["open_popup"] = "Save preset as"
+        if imgui.menu_item_simple("Revert", "", False, state.dirty or state.preset_path is not None):
+            state.revert()
+        imgui.separator()
+        if imgui.menu_item_simple("Screenshot...", "F12"):
+            scratch["open_popup"] = "Screenshot"
+        if imgui.menu_item_simple("Export OSL...", "", False, state.osl_available):
+            scratch["open_popup"] = "Export OSL"
+        if not state.osl_available:
+            imgui.set_item_tooltip("app.export.osl is not installed in this build")
+        imgui.separator()
+        if imgui.menu_item_simple("Quit", "Ctrl+Q"):
+            state.request("quit")
+        imgui.end_menu()
+    if imgui.begin_menu("Edit"):
+        if imgui.menu_item_simple("Undo", "Ctrl+Z"):
+            state.undo()
+        if imgui.menu_item_simple("Redo", "Ctrl+Shift+Z"):
+            state.redo()
+        imgui.separator()
+        if imgui.menu_item_simple("Reset every parameter to its default"):
+            state.begin_gesture()
+            state.edit_many({p.key: p.default for p in SPEC if p.group != "camera"})
+        imgui.end_menu()
+    if imgui.begin_menu("View"):
+        for i, name in enumerate(VIEWS):
+            if imgui.menu_item_simple(name, str(i + 1), state.view.view == name):
+                state.view.view = name
+                state.touch()
+        imgui.separator()
+        _, state.view.show_panel = imgui.menu_item("Panel", "Tab", state.view.show_panel)
+        _, state.view.show_stats = imgui.menu_item("Stats overlay", "", state.view.show_stats)
+        imgui.separator()
+        if imgui.menu_item_simple("Frame all", "F"):
+            state.frame_all()
+        if imgui.menu_item_simple("Reset camera", "Home"):
+            state.reset_camera()
+        _, state.view.turntable = imgui.menu_item("Turntable", "T", state.view.turntable)
+        imgui.end_menu()
+    if imgui.begin_menu("Help"):
+        _, state.view.show_help = imgui.menu_item("Shortcuts", "F1", state.view.show_help)
+        imgui.end_menu()
+    # what is on screen, right-aligned in the menu bar
+    label = state.stats.label
+    if label:
+        w = imgui.calc_text_size(label).x
+        imgui.same_line(imgui.get_window_width() - w - 16)
+        imgui.text_colored(AMBER if label.startswith("interactive") else DIM, label)
+    h = imgui.get_window_height()
+    imgui.end_main_menu_bar()
+    return h
+
+
+# --- the parameter panel ---------------------------------------------------------------------------------
+
+def _panel(state: AppState, scratch: dict[str, Any], x: float, y: float, w: float, h: float) -> None:
+    imgui.set_next_window_pos(imgui.ImVec2(x, y), imgui.Cond_.always)
+    imgui.set_next_window_size(imgui.ImVec2(w, h), imgui.Cond_.always)
+    flags = (imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_resize | imgui.WindowFlags_.no_collapse
+             | imgui.WindowFlags_.no_saved_settings)
+    imgui.begin("Parameters", None, flags)
+    imgui.text(state.display_name + ("*" if state.dirty else ""))
+    if state.preset_description:
+        imgui.text_disabled(state.preset_description)
+        imgui.set_item_tooltip(state.preset_description)
+    if state.status:
+        imgui.push_text_wrap_pos(0.0)
+        imgui.text_colored(RED if state.status.startswith("error") else DIM, state.status)
+        imgui.pop_text_wrap_pos()
+    if state.shader_error:
+        imgui.separator()
+        imgui.push_text_wrap_pos(0.0)
+        imgui.text_colored(RED, "Shaders do not compile; the last good program (if any) stays on screen. "
+                                "Fix the file and save: it reloads by itself.")
+        imgui.text_colored(RED, state.shader_error)
+        imgui.pop_text_wrap_pos()
+    if state.scene_error:
+        imgui.separator()
+        imgui.push_text_wrap_pos(0.0)
+        imgui.text_colored(RED, "Scene not rebuilt: " + state.scene_error)
+        imgui.pop_text_wrap_pos()
+    imgui.separator()
+    imgui.push_item_width(-imgui.get_content_region_avail().x * 0.45)
+    covered: set[str] = set()
+    sections = list(SECTIONS) + [(g.capitalize(), (g,)) for g in GROUPS
+                                 if not any(g in gs for _, gs in SECTIONS)]
+    for title, groups in sections:
+        params = [p for p in SPEC if p.group in groups]
+        if not params:
+            continue
+        flags = imgui.TreeNodeFlags_.default_open if title in ("Containers", "Look", "Quality") else 0
+        if imgui.collapsing_header(title, flags):
+            for group in groups:
+                if len(groups) > 1:
+                    imgui.separator_text(group)
+                for p in params:
+                    if p.group == group:
+                        param_widget(state, scratch, p)
+                        covered.add(p.key)
+    if imgui.collapsing_header("Debug view", imgui.TreeNodeFlags_.default_open):
+        _debug_panel(state)
+    imgui.pop_item_width()
+    imgui.end()
+
+
+def _label(p: Param) -> str:
+    return f"{p.name.replace('_', ' ')}##{p.key}"
+
+
+def _tooltip(state: AppState, p: Param, extra: str = "") -> None:
+    if not imgui.is_item_hovered(imgui.HoveredFlags_.for_tooltip):
+        return
+    text = [p.key, p.help, "allowed: " + p.allowed(), f"default: {_fmt_value(p.default)}"]
+    if extra:
+        text.append(extra)
+    rel = RELEVANCE.get(p.key)
+    if rel is not None and not _relevant(state, p.key):
+        text.append(f"(no effect while {rel[1]})")
+    text.append("right-click: reset to default")
+    imgui.set_tooltip("\n".join(text))
+
+
+def _relevant(state: AppState, key: str) -> bool:
+    rel = RELEVANCE.get(key)
+    if rel is None:
+        return True
+    try:
+        return bool(rel[0](state.params))
+    except KeyError:  # a parameter the rule names was renamed: never hide anything because of it
+        return True
+
+
+def _fmt_value(v: Any) -> str:
+    if isinstance(v, float):
+        return f"{v:g}"
+    if isinstance(v, tuple):
+        return "(" + ", ".join(f"{x:g}" for x in v) + ")"
+    return repr(v) if isinstance(v, str) else str(v)
+
+
+def _float_format(lo: float, hi: float) -> str:
+    return "%.2f" if hi - lo >= 10 else "%.3f"
+
+
+def widget_kind(p: Param) -> str:
+    """Which widget a SPEC entry gets, from its kind and bounds alone (so new parameters need no code)."""
+    if p.kind is bool:
+        return "checkbox"
+    if p.choices:
+        return "combo"
+    if p.kind is str:
+        return "text"
+    if p.kind is tuple:
+        return "color" if ("color" in p.name or "background" in p.name) else "drag3"
+    lo = p.lo if p.lo is not None else -math.inf
+    hi = p.hi if p.hi is not None else math.inf
+    if p.kind is int:
+        if hi - lo <= 256:
+            return "slider_int"
+        return "input_int" if "seed" in p.name else "drag_int"
+    if p.key == "fibers.fiber_radius":
+        return "fiber_radius"
+    return "slider_float" if hi - lo <= 720 else "drag_float"
+
+
+def param_widget(state: AppState, scratch: dict[str, Any], p: Param) -> None:
+    """One field for one SPEC entry: the widget follows the kind and bounds."""
+    key = p.key
+    kind = widget_kind(p)
+    shown = state.value(key)
+    if not _type_ok(p, shown):
+        shown = state.params[key]
+    dim = not _relevant(state, key)
+    if dim:
+        imgui.push_style_var(imgui.StyleVar_.alpha, 0.5)
+    label = _label(p)
+    changed, new = False, shown
+    extra = ""
+    # no_round_to_format: a value typed with ctrl+click keeps every digit, not the display's
+    clamp = imgui.SliderFlags_.always_clamp | imgui.SliderFlags_.no_round_to_format
+    if kind == "checkbox":
+        changed, new = imgui.checkbox(label, bool(shown))
+    elif kind == "combo":
+        idx = p.choices.index(shown) if shown in p.choices else 0
+        changed, i = imgui.combo(label, idx, list(p.choices))
+        new = p.choices[i]
+    elif kind == "text":
+        buf_key = f"text:{key}"
+        text = scratch.get(buf_key, shown)
+        entered, text = imgui.input_text(label, text, imgui.InputTextFlags_.enter_returns_true)
+        scratch[buf_key] = text
+        if entered or (imgui.is_item_deactivated() and text != shown):
+            changed, new = True, text
+            scratch.pop(buf_key, None)
+        extra = "press Enter to apply"
+    elif kind in ("color", "drag3"):
+        values = [float(x) for x in shown]
+        if kind == "color":
+            changed, values = imgui.color_edit3(label, values, imgui.ColorEditFlags_.float)
+        else:
+            speed = max(0.001, 0.005 * max(abs(x) for x in values)) if any(values) else 0.01
+            changed, values = imgui.drag_float3(label, values, speed, p.lo or 0.0, p.hi or 0.0, "%.4g", clamp)
+        new = tuple(float(x) for x in values)
+    elif p.kind is int:
+        lo, hi = int(p.lo if p.lo is not None else -2**31), int(p.hi if p.hi is not None else 2**31 - 1)
+        if kind == "slider_int":
+            changed, new = imgui.slider_int(label, int(shown), lo, hi, "%d", clamp)
+        elif kind == "input_int":
+            changed, new = imgui.input_int(label, int(shown), 1, 100)
+            new = min(max(new, lo), hi)
+        else:
+            speed = max(1.0, abs(int(shown)) * 0.01)
+            changed, new = imgui.drag_int(label, int(shown), speed, lo, hi, "%d", clamp)
+    else:  # float
+        lo = float(p.lo) if p.lo is not None else -1e30
+        hi = float(p.hi) if p.hi is not None else 1e30
+        if kind == "fiber_radius":
+            hi = min(hi, max_fiber_radius(state.params["fibers.rings"]))
+            extra = (f"at most 0.5 / rings = {hi:g} with {state.params['fibers.rings']} rings; changing "
+                     "the ring count pulls the radius down to fit")
+            changed, new = imgui.slider_float(label, float(shown), lo, hi, "%.4f", clamp)
+        elif kind == "slider_float":
+            fmt = _float_format(lo, hi)
+            if p.unit:
+                fmt += f" {p.unit.replace('%', '%%')}" if p.unit not in ("units",) else ""
+            changed, new = imgui.slider_float(label, float(shown), lo, hi, fmt, clamp)
+        else:
+            v = float(shown)
+            speed = max(abs(v) * 0.005, 1e-4 * (1.0 if hi > 1 else hi))
+            changed, new = imgui.drag_float(label, v, speed, lo, hi, "%.5g", clamp)
+            if v == 0.0 and key.startswith("camera."):
+                extra = "0 = automatic"
+    if imgui.is_item_activated():
+        state.begin_gesture()
+    _tooltip(state, p, extra)
+    if imgui.begin_popup_context_item(f"ctx##{key}"):
+        if imgui.menu_item_simple("Reset to default"):
+            state.begin_gesture()
+            state.reset_key(key)
+        if imgui.menu_item_simple("Copy key"):
+            imgui.set_clipboard_text(key)
+        imgui.end_popup()
+    if dim:
+        imgui.pop_style_var()
+    if changed:
+        state.edit(key, _tidy(new))
+    if key in state.errors:
+        imgui.push_text_wrap_pos(0.0)
+        imgui.text_colored(RED, state.errors[key])
+        imgui.pop_text_wrap_pos()
+    if key in state.notes:
+        imgui.push_text_wrap_pos(0.0)
+        imgui.text_colored(AMBER, state.notes[key])
+        imgui.pop_text_wrap_pos()
+
+
+def _tidy(v: Any) -> Any:
+    """imgui edits float32: keep 6 significant digits so a preset says 0.3, not 0.30000001192092896."""
+    if isinstance(v, float):
+        return float(f"{v:.6g}")
+    if isinstance(v, tuple):
+        return tuple(_tidy(x) for x in v)
+    return v
+
+
+def _type_ok(p: Param, v: Any) -> bool:
+    if p.kind is bool:
+        return isinstance(v, bool)
+    if p.kind is str:
+        return isinstance(v, str)
+    if p.kind is tuple:
+        return isinstance(v, (tuple, list)) and len(v) == 3 and all(
+            isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v)
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and abs(v) < 2**31
+
+
+def _debug_panel(state: AppState) -> None:
+    v = state.view
+    changed, i = imgui.combo("view##debug", VIEWS.index(v.view), list(VIEWS))
+    if changed:
+        v.view = VIEWS[i]
+        state.touch()
+    imgui.set_item_tooltip("keys 1-7; heat map = fiber tests per pixel (a cost render); proxies = the "
+                           "container boxes' cylinders as wireframes over the dimmed render")
+    _, i = imgui.combo("interactive scale", INTERACTIVE_SCALES.index(v.interactive_scale),
+                       list(INTERACTIVE_SCALES))
+    v.interactive_scale = INTERACTIVE_SCALES[i]
+    imgui.set_item_tooltip("resolution while a slider is dragged or the camera moves (times "
+                           "quality.render_scale); auto aims at the budget below")
+    if v.interactive_scale == "auto":
+        _, v.auto_budget_ms = imgui.slider_float("budget", v.auto_budget_ms, 20.0, 500.0, "%.0f ms")
+    _, i = imgui.combo("interactive mode", INTERACTIVE_MODES.index(v.interactive_mode),
+                       list(INTERACTIVE_MODES))
+    v.interactive_mode = INTERACTIVE_MODES[i]
+    imgui.set_item_tooltip("fast: the thesis's traversal order, first hit wins; final mode: quality.mode")
+    _, v.refine_delay = imgui.slider_float("refine after", v.refine_delay, 0.05, 2.0, "%.2f s")
+    imgui.set_item_tooltip("stillness before the full-resolution frame in quality.mode")
+    changed, i = imgui.combo("frame path", FRAME_PATHS.index(v.frame_path), list(FRAME_PATHS))
+    if changed:
+        v.frame_path = FRAME_PATHS[i]
+        state.touch()
+    imgui.set_item_tooltip("direct: draw from the renderer's texture; readback: through numpy and an "
+                           "upload (compare their frame times in the stats)")
+    changed, v.heat_max = imgui.drag_float("heat max", v.heat_max, 1.0, 0.0, 1e6, "%.0f tests")
+    imgui.set_item_tooltip("top of the heat-map scale; 0 = the 99th percentile of this view")
+    _, v.turntable = imgui.checkbox("turntable", v.turntable)
+    imgui.same_line()
+    imgui.set_next_item_width(120)
+    _, v.turntable_speed = imgui.slider_float("deg/s", v.turntable_speed, -180.0, 180.0, "%.0f")
+
+
+# --- overlays ----------------------------------------------------------------------------------------------
+
+def _overlay_begin(name: str, x: float, y: float, pivot=(0.0, 0.0)) -> bool:
+    imgui.set_next_window_pos(imgui.ImVec2(x, y), imgui.Cond_.always, imgui.ImVec2(*pivot))
+    imgui.set_next_window_bg_alpha(0.55)
+    flags = (imgui.WindowFlags_.no_decoration | imgui.WindowFlags_.always_auto_resize
+             | imgui.WindowFlags_.no_saved_settings | imgui.WindowFlags_.no_focus_on_appearing
+             | imgui.WindowFlags_.no_nav | imgui.WindowFlags_.no_inputs | imgui.WindowFlags_.no_move)
+    return imgui.begin(name, None, flags)[0]
+
+
+def _bytes(n: float) -> str:
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
+        if abs(n) < 1024 or unit == "TiB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1024
+    return f"{n:.1f} TiB"
+
+
+def _stats_overlay(state: AppState, layout: Layout) -> None:
+    s = state.stats
+    if _overlay_begin("##stats", layout.x + 10, layout.y + 10):
+        imgui.text_colored(AMBER if s.label.startswith("interactive") else DIM, s.label or "-")
+        w, h = s.render_size
+        samples = f"  {s.samples[0]}/{s.samples[1]} samples" if s.samples[1] > 1 else ""
+        imgui.text(f"render {w}x{h}{samples}")
+        imgui.text(f"frame {s.frame_ms:.1f} ms (median)   fibers {s.render_ms:.1f} ms ({s.render_clock})")
+        if s.edit_latency_ms is not None:
+            imgui.text(f"change -> frame {s.edit_latency_ms:.0f} ms")
+        imgui.text(f"fibers {s.fibers_exact:,} exact   {s.fibers_41:,.0f} (expr. 4.1)")
+        imgui.text(f"containers {s.guides:,} guides, {s.segments:,} segments")
+        ratio = s.explicit_bytes / s.scene_gpu_bytes if s.scene_gpu_bytes else 0.0
+        imgui.text(f"scene on GPU {_bytes(s.scene_gpu_bytes)}   explicit {_bytes(s.explicit_bytes)}"
+                   f" ({ratio:,.0f}x)")
+        if s.tests_per_pixel is not None:
+            imgui.text(f"fiber tests / covered pixel {s.tests_per_pixel:.1f} (p99 {s.tests_p99:.0f}; "
+                       f"{s.cost_size[0]}x{s.cost_size[1]}, {s.cost_age_s:.0f} s ago)")
+        else:
+            imgui.text_disabled("fiber tests / covered pixel: after the first still frame")
+        if s.gl_error != "GL_NO_ERROR":
+            imgui.text_colored(RED, f"GL error: {s.gl_error}")
+        imgui.text_disabled(s.gl_renderer)
+    imgui.end()
+
+
+def _heat_legend(state: AppState, layout: Layout) -> None:
+    s = state.stats
+    top = state.view.heat_max or s.tests_p99 or 1.0
+    if _overlay_begin("##legend", layout.x + 10, layout.y + layout.h - 10, (0.0, 1.0)):
+        imgui.text("fiber tests per pixel" + (" (auto: 99th percentile)" if not state.view.heat_max else ""))
+        dl = imgui.get_window_draw_list()
+        pos = imgui.get_cursor_screen_pos()
+        width, height = 260.0 * _ui_scale(), 14.0 * _ui_scale()
+        n = len(HEAT_STOPS) - 1
+        for i in range(n):
+            a, b = HEAT_STOPS[i], HEAT_STOPS[i + 1]
+            ca = imgui.get_color_u32(imgui.ImVec4(*a, 1.0))
+            cb = imgui.get_color_u32(imgui.ImVec4(*b, 1.0))
+            x0, x1 = pos.x + width * i / n, pos.x + width * (i + 1) / n
+            dl.add_rect_filled_multi_color(imgui.ImVec2(x0, pos.y), imgui.ImVec2(x1, pos.y + height), ca, cb, cb, ca)
+        imgui.dummy(imgui.ImVec2(width, height))
+        imgui.text("0")
+        mid = f"{top / 2:.0f}"
+        imgui.same_line(width / 2 - imgui.calc_text_size(mid).x / 2)
+        imgui.text(mid)
+        end = f"{top:.0f}+"
+        imgui.same_line(width - imgui.calc_text_size(end).x)
+        imgui.text(end)
+    imgui.end()
+
+
+def _help_window(state: AppState) -> None:
+    imgui.set_next_window_size(imgui.ImVec2(520 * _ui_scale(), 0), imgui.Cond_.appearing)
+    opened, state.view.show_help = imgui.begin("Shortcuts (F1)", state.view.show_help,
+                                               imgui.WindowFlags_.no_saved_settings)
+    if opened and imgui.begin_table("keys", 2, imgui.TableFlags_.row_bg | imgui.TableFlags_.borders_inner_v):
+        for key, what in SHORTCUTS:
+            imgui.table_next_row()
+            imgui.table_next_column()
+            imgui.text(key)
+            imgui.table_next_column()
+            imgui.text(what)
+        imgui.end_table()
+    if opened:
+        imgui.push_text_wrap_pos(0.0)
+        imgui.text_disabled("Camera moves are saved with a preset but do not mark it modified. While "
+                            "something moves, the view renders at the interactive scale; after the refine "
+                            "delay it renders at full resolution in quality.mode, then accumulates "
+                            "quality.supersample^2 samples.")
+        imgui.separator_text("The stats overlay")
+        imgui.text_disabled("fibers: exact = whole fibers per ring summed over rings x guides; expr. 4.1 = "
+                            "the thesis's sum of 360/phi_step. Scene on GPU: the container buffer plus the "
+                            "proxy cube. " + EXPLICIT_FORMULA + ". Fiber tests / covered pixel: a cost render "
+                            "(at most 640x360) after each still frame, over pixels any container covers. "
+                            "Fibers ms: a GPU timer query (32-bit: past 4.29 s the wall clock is shown).")
+        imgui.pop_text_wrap_pos()
+    imgui.end()
+
+
+# --- dialogs -----------------------------------------------------------------------------------------------
+
+def _open_requested(scratch: dict[str, Any]) -> None:
+    name = scratch.get("open_popup")
+    if name:
+        imgui.open_popup(name)
+        scratch["open_popup"] = None
+
+
+def _dialogs(state: AppState, scratch: dict[str, Any]) -> None:
+    for command, args in list(state.commands):
+        if command == "ask_save_as":
+            state.commands.remove((command, args))
+            scratch["open_popup"] = "Save preset as"
+    if state.last_error and not imgui.is_popup_open("Error"):
+        scratch["open_popup"] = "Error"
+    if state.confirm and not imgui.is_popup_open("Unsaved changes"):
+        scratch["open_popup"] = "Unsaved changes"
+    _open_requested(scratch)
+    center = imgui.get_main_viewport().get_center()
+    auto = imgui.WindowFlags_.always_auto_resize | imgui.WindowFlags_.no_saved_settings
+
+    imgui.set_next_window_pos(center, imgui.Cond_.appearing, imgui.ImVec2(0.5, 0.5))
+    if imgui.begin_popup_modal("Error", None, auto)[0]:
+        imgui.push_text_wrap_pos(640 * _ui_scale())
+        imgui.text_colored(RED, state.last_error or "")
+        if state.last_error_key:
+            imgui.text(f"key: {state.last_error_key}")
+        imgui.text_disabled("Nothing was changed: the scene on screen is the one you had.")
+        imgui.pop_text_wrap_pos()
+        if imgui.button("OK") or imgui.is_key_pressed(imgui.Key.enter) or imgui.is_key_pressed(imgui.Key.escape):
+            state.close_error()
+            imgui.close_current_popup()
+        imgui.end_popup()
+
+    imgui.set_next_window_pos(center, imgui.Cond_.appearing, imgui.ImVec2(0.5, 0.5))
+    if imgui.begin_popup_modal("Unsaved changes", None, auto)[0]:
+        imgui.text(state.confirm.message if state.confirm else "")
+        if imgui.button("Save"):
+            if state.preset_path is None:
+                state.answer_confirm("cancel")
+                scratch["open_popup"] = "Save preset as"
+            else:
+                state.answer_confirm("save")
+            imgui.close_current_popup()
+        imgui.same_line()
+        if imgui.button("Discard changes"):
+            state.answer_confirm("discard")
+            imgui.close_current_popup()
+        imgui.same_line()
+        if imgui.button("Cancel") or imgui.is_key_pressed(imgui.Key.escape):
+            state.answer_confirm("cancel")
+            imgui.close_current_popup()
+        imgui.end_popup()
+
+    _path_dialog(state, scratch, "Open preset", "Open", _default_dir(state), _do_open, list_files=True)
+    _save_as_dialog(state, scratch, center, auto)
+    _screenshot_dialog(state, scratch, center, auto)
+    _path_dialog(state, scratch, "Export OSL", "Export", str(Path(_default_dir(state)) /
+                 f"{Path(state.display_name).stem or 'vfiber'}.osl"),
+                 lambda st, path: st.request("export_osl", path=path))
+
+
+def _default_dir(state: AppState) -> str:
+    return str(state.preset_path.parent if state.preset_path else Path.cwd())
+
+
+def _do_open(state: AppState, path: str) -> None:
+    if is_groom_path(path):
+        state.open_groom(path)
+    else:
+        state.open(path)
+
+
+def _path_dialog(state: AppState, scratch: dict[str, Any], name: str, verb: str, default: str,
+                 action: Callable[[AppState, str], None], list_files: bool = False) -> None:
+    center = imgui.get_main_viewport().get_center()
+    imgui.set_next_window_pos(center, imgui.Cond_.appearing, imgui.ImVec2(0.5, 0.5))
+    imgui.set_next_window_size(imgui.ImVec2(620 * _ui_scale(), 0), imgui.Cond_.appearing)
+    if not imgui.begin_popup_modal(name, None, imgui.WindowFlags_.no_saved_settings)[0]:
+        scratch.pop(f"path:{name}", None)
+        return
+    key = f"path:{name}"
+    if key not in scratch:
+        scratch[key] = default if default.endswith((".toml", ".osl", ".png")) else default.rstrip("/") + "/"
+        imgui.set_keyboard_focus_here()
+    imgui.set_next_item_width(-1)
+    entered, scratch[key] = imgui.input_text("##path", scratch[key], imgui.InputTextFlags_.enter_returns_true)
+    if list_files:
+        folder = Path(scratch[key]).expanduser()
+        folder = folder if folder.is_dir() else folder.parent
+        files = sorted(list(folder.glob("*.toml")) + [f for s in (".hair", ".data", ".tfx", ".ply")
+                                                      for f in folder.glob(f"*{s}")])[:200] if folder.is_dir() else []
+        bundled = presets_dir()
+        if imgui.begin_child("files", imgui.ImVec2(0, 180 * _ui_scale()), imgui.ChildFlags_.borders):
+            for f in files:
+                if imgui.selectable(f.name, str(f) == scratch[key])[0]:
+                    scratch[key] = str(f)
+                    if imgui.is_mouse_double_clicked(imgui.MouseButton_.left):
+                        entered = True
+            if bundled is not None:
+                for f in sorted(bundled.glob("*.toml")):
+                    if imgui.selectable(f"[bundled] {f.stem}", False)[0]:
+                        scratch[key] = str(f)
+            if not files:
+                imgui.text_disabled(f"no presets or grooms in {folder}")
+        imgui.end_child()
+    if imgui.button(verb) or entered:
+        path = os.path.expanduser(scratch.pop(key))
+        imgui.close_current_popup()
+        action(state, path)
+    imgui.same_line()
+    if imgui.button("Cancel") or imgui.is_key_pressed(imgui.Key.escape):
+        scratch.pop(key, None)
+        imgui.close_current_popup()
+    imgui.end_popup()
+
+
+def _save_as_dialog(state: AppState, scratch: dict[str, Any], center, flags) -> None:
+    imgui.set_next_window_pos(center, imgui.Cond_.appearing, imgui.ImVec2(0.5, 0.5))
+    imgui.set_next_window_size(imgui.ImVec2(620 * _ui_scale(), 0), imgui.Cond_.appearing)
+    if not imgui.begin_popup_modal("Save preset as", None, imgui.WindowFlags_.no_saved_settings)[0]:
+        scratch.pop("save_as", None)
+        return
+    form = scratch.setdefault("save_as", {
+        "path": str(state.preset_path or Path.cwd() / f"{state.display_name}.toml"),
+        "name": state.preset_name, "description": state.preset_description})
+    _, form["path"] = imgui.input_text("file", form["path"])
+    _, form["name"] = imgui.input_text("name", form["name"])
+    _, form["description"] = imgui.input_text("description", form["description"])
+    imgui.set_item_tooltip("one line: what you should see when it renders")
+    exists = Path(form["path"]).expanduser().exists() and Path(form["path"]).expanduser() != state.preset_path
+    if exists:
+        imgui.text_colored(AMBER, "a file of that name exists and will be replaced")
+    if imgui.button("Save"):
+        imgui.close_current_popup()
+        state.save_as(os.path.expanduser(form["path"]), form["name"], form["description"])
+        scratch.pop("save_as", None)
+    imgui.same_line()
+    if imgui.button("Cancel") or imgui.is_key_pressed(imgui.Key.escape):
+        scratch.pop("save_as", None)
+        imgui.close_current_popup()
+    imgui.end_popup()
+
+
+def _screenshot_dialog(state: AppState, scratch: dict[str, Any], center, flags) -> None:
+    imgui.set_next_window_pos(center, imgui.Cond_.appearing, imgui.ImVec2(0.5, 0.5))
+    if not imgui.begin_popup_modal("Screenshot", None, flags)[0]:
+        return
+    w, h = state.stats.render_size if state.stats.render_size != (0, 0) else (1280, 720)
+    form = scratch.setdefault("shot", {"path": str(Path.cwd() / f"{Path(state.display_name).stem}.png"),
+                                       "size": [1920, 1080], "view": False})
+    imgui.set_next_item_width(460 * _ui_scale())
+    _, form["path"] = imgui.input_text("file", form["path"])
+    _, form["size"] = imgui.input_int2("size", form["size"])
+    form["size"] = [min(max(int(x), 1), 16384) for x in form["size"]]
+    for label, size in (("720p", (1280, 720)), ("1080p", (1920, 1080)), ("4K", (3840, 2160)),
+                        ("square", (1024, 1024)), ("viewport", (w, h))):
+        imgui.same_line() if label != "720p" else None
+        if imgui.small_button(label):
+            form["size"] = list(size)
+    _, form["view"] = imgui.checkbox(f"this debug view ({state.view.view}) instead of shaded", form["view"])
+    imgui.text_disabled(f"shaded uses quality.supersample = {state.params['quality.supersample']} "
+                        f"({state.params['quality.supersample'] ** 2} samples), quality.mode = "
+                        f"{state.params['quality.mode']}")
+    if imgui.button("Save PNG"):
+        state.request("screenshot", path=os.path.expanduser(form["path"]), size=tuple(form["size"]),
+                      view=state.view.view if form["view"] else "shaded")
+        imgui.close_current_popup()
+    imgui.same_line()
+    if imgui.button("Cancel") or imgui.is_key_pressed(imgui.Key.escape):
+        imgui.close_current_popup()
+    imgui.end_popup()

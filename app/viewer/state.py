@@ -1,0 +1,480 @@
+"""The viewer's state: every value the panels edit, with no imgui and no OpenGL in sight.
+
+``gui(state)`` (gui.py) only changes these values; ``Viewer.render`` (app.py) only reads them. The
+script runner (script.py) drives the same methods the panels call, so a scripted session and a person at
+the keyboard go down one path.
+
+Editing rules that an artist sees:
+
+* ``edit(key, value)`` validates through ``Params``; a value that breaks a relation between parameters
+  (e.g. ``scene.generator = 'groom'`` without a file) is kept as *pending* beside the field with the
+  ``ParamError`` message, and the last valid parameters keep rendering. Fixing the other field applies it.
+* Changing ``fibers.rings`` clamps ``fibers.fiber_radius`` to ``0.5 / rings`` (a fiber must fit its ring)
+  and leaves a note beside the field saying so.
+* Camera moves are saved with the preset but do not mark it modified (as in Blender, where orbiting the
+  viewport never asks "save changes?"); everything else does.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ..params import BY_KEY, SPEC, ParamError, Params, max_fiber_radius, suggest
+from ..presets import PresetError, Preset, find_preset, load_preset, save_preset
+
+VIEWS: tuple[str, ...] = ("shaded", "fiber ids", "rings", "normals", "depth", "heat map", "proxies")
+INTERACTIVE_SCALES: tuple[str, ...] = ("25%", "50%", "75%", "100%", "auto")
+INTERACTIVE_MODES: tuple[str, ...] = ("fast", "final mode")
+FRAME_PATHS: tuple[str, ...] = ("direct", "readback")
+GROOM_SUFFIXES: tuple[str, ...] = (".hair", ".data", ".tfx", ".ply")
+UNDO_DEPTH = 200
+
+
+def now() -> float:
+    return time.perf_counter()
+
+
+@dataclass
+class ViewSettings:
+    """Viewer-only settings: never saved in a preset."""
+
+    view: str = "shaded"                 # one of VIEWS
+    interactive_scale: str = "50%"       # one of INTERACTIVE_SCALES: resolution while dragging
+    interactive_mode: str = "fast"       # "fast" (thesis order, first hit) or "final mode" (quality.mode)
+    auto_budget_ms: float = 120.0        # "auto" scale aims the interactive render at this time
+    refine_delay: float = 0.3            # seconds of stillness before the final frame
+    frame_path: str = "direct"           # "direct": draw from the renderer's texture; "readback": via numpy
+    heat_max: float = 0.0                # heat-map top of scale, fiber tests; 0 = automatic (99th percentile)
+    turntable: bool = False
+    turntable_speed: float = 30.0        # degrees per second
+    show_panel: bool = True
+    show_stats: bool = True
+    show_help: bool = False
+    panel_width: float = 380.0           # points (logical pixels); scaled by the monitor's content scale
+
+
+@dataclass
+class Confirm:
+    """A question waiting for the person: discard unsaved changes before ``action``?"""
+
+    message: str
+    action: Callable[[], Any]
+    can_save: bool = True
+
+
+@dataclass
+class Stats:
+    """Numbers the overlay shows; filled by the app, read by the gui."""
+
+    frame_ms: float = 0.0                # median loop time over the last frames
+    render_ms: float = 0.0               # last fiber render: GPU timer query (or wall clock past 4.29 s)
+    render_clock: str = "gpu"            # "gpu" or "wall"
+    render_size: tuple[int, int] = (0, 0)
+    label: str = ""                      # what is on screen: "interactive 50% fast" / "final exact"
+    samples: tuple[int, int] = (0, 0)    # (accumulated, wanted) supersamples of the final frame
+    fibers_41: float = 0.0               # thesis expression 4.1 over the scene's guides
+    fibers_exact: int = 0
+    guides: int = 0
+    segments: int = 0
+    scene_gpu_bytes: int = 0
+    explicit_bytes: int = 0              # explicit storage of the same fibers (see EXPLICIT_FORMULA)
+    tests_per_pixel: float | None = None  # mean fiber tests per container-covered pixel (cost render)
+    tests_p99: float = 0.0
+    covered_pixels: int = 0
+    cost_size: tuple[int, int] = (0, 0)
+    cost_age_s: float = 0.0
+    edit_latency_ms: float | None = None  # slider change -> the frame that shows it, on screen
+    scene_build_ms: float = 0.0
+    gl_renderer: str = ""
+    gl_error: str = "GL_NO_ERROR"
+
+
+EXPLICIT_FORMULA = ("explicit = fibers per container x container segments x 2 vertices x 16 bytes "
+                    "(float32 xyz + radius per vertex, one line segment per fiber per container segment)")
+
+
+def explicit_bytes(fibers_per_container: int, n_segments: int) -> int:
+    return int(fibers_per_container) * int(n_segments) * 2 * 16
+
+
+@dataclass
+class AppState:
+    params: Params = field(default_factory=Params)
+    saved: Params | None = None          # what the preset file holds (None: never saved)
+    preset_path: Path | None = None
+    preset_name: str = ""
+    preset_description: str = ""
+    view: ViewSettings = field(default_factory=ViewSettings)
+    stats: Stats = field(default_factory=Stats)
+
+    pending: dict[str, Any] = field(default_factory=dict)   # values shown in a field but not valid yet
+    errors: dict[str, str] = field(default_factory=dict)    # key -> ParamError message, shown inline
+    notes: dict[str, str] = field(default_factory=dict)     # key -> an explanation (e.g. a clamp)
+    last_error: str | None = None        # the error dialog's text; None when closed
+    last_error_key: str | None = None
+    error_log: list[str] = field(default_factory=list)      # every error shown this session
+    status: str = ""                     # one-line message in the status bar
+    confirm: Confirm | None = None
+    scene_error: str | None = None       # the scene could not be built from the current parameters
+    shader_error: str | None = None      # a hot reload failed; the last good program stays on screen
+    osl_available: bool = False
+
+    last_change: float = 0.0             # perf_counter of the last change to what is rendered
+    last_edit: float | None = None       # perf_counter of the last parameter edit not yet on screen
+    dragging: bool = False               # a slider (or a camera drag) is held this frame
+    commands: list[tuple[str, dict[str, Any]]] = field(default_factory=list)  # for the app: screenshot...
+
+    _undo: list[Params] = field(default_factory=list)
+    _redo: list[Params] = field(default_factory=list)
+    _gesture_open: bool = False
+
+    # --- what is shown -----------------------------------------------------------------------------
+    @property
+    def dirty(self) -> bool:
+        """Unsaved changes, camera excluded (see the module docstring)."""
+        base = self.saved if self.saved is not None else Params()
+        return any(self.params[k] != base[k] for k in self.params if not k.startswith("camera."))
+
+    @property
+    def display_name(self) -> str:
+        if self.preset_name:
+            return self.preset_name
+        return self.preset_path.stem if self.preset_path else "untitled"
+
+    @property
+    def title(self) -> str:
+        star = "*" if self.dirty else ""
+        where = f" ({self.preset_path})" if self.preset_path else ""
+        return f"{self.display_name}{star}{where} - vfiber"
+
+    def value(self, key: str) -> Any:
+        """What a field shows: a pending (not yet valid) value, else the live one."""
+        return self.pending.get(key, self.params[key])
+
+    def touch(self) -> None:
+        """Something that changes the image happened: show interactive quality for a moment."""
+        self.last_change = now()
+
+    # --- editing -----------------------------------------------------------------------------------
+    def begin_gesture(self) -> None:
+        """Start of one undoable step (a slider press, a script ``set``)."""
+        self._gesture_open = False
+
+    def end_gesture(self) -> None:
+        self._gesture_open = False
+
+    def _push_undo(self) -> None:
+        if not self._gesture_open:
+            if not self._undo or self._undo[-1] != self.params:
+                self._undo.append(self.params)
+                del self._undo[:-UNDO_DEPTH]
+            self._redo.clear()
+            self._gesture_open = True
+
+    def edit(self, key: str, value: Any, *, undoable: bool = True) -> bool:
+        """Set one parameter as a slider would. Returns True when the rendered parameters changed."""
+        return self.edit_many({key: value}, undoable=undoable)
+
+    def edit_many(self, changes: dict[str, Any], *, undoable: bool = True) -> bool:
+        for key in changes:
+            if key not in BY_KEY:
+                raise ParamError(f"unknown parameter {key!r}{suggest(key)}", key=key, source="viewer")
+        # each value alone must be allowed; a bad one stays in its field with the reason
+        accepted: dict[str, Any] = {}
+        for key, value in changes.items():
+            try:
+                accepted[key] = BY_KEY[key].check(value)
+            except ParamError as e:
+                self.pending[key] = value
+                self.errors[key] = e.bare
+        if not accepted:
+            return False
+        for key in accepted:
+            self.pending.pop(key, None)
+            self.errors.pop(key, None)
+        if "fibers.fiber_radius" in accepted:
+            self.notes.pop("fibers.fiber_radius", None)
+        # values waiting only for another field (a relation) are tried again with this edit
+        waiting = {k: BY_KEY[k].check(v) for k, v in self.pending.items() if _valid_alone(k, v)}
+        result = self._try({**self.params.values, **waiting, **accepted}, accepted)
+        if result is not None:
+            for key in waiting:
+                self.pending.pop(key, None)
+                self.errors.pop(key, None)
+        else:  # without the waiting values: this edit may be fine on its own
+            result = self._try({**self.params.values, **accepted}, accepted)
+        if result is None:
+            if len(accepted) > 1:  # several keys at once (a script): let the independent ones through
+                changed = False
+                for key, value in accepted.items():
+                    changed |= self.edit_many({key: value}, undoable=undoable)
+                return changed
+            error = self._relation_error({**self.params.values, **accepted}, accepted)
+            for key, value in accepted.items():
+                self.pending[key] = value
+                self.errors[key] = error.bare
+            if error.key in self.pending:
+                self.errors[error.key] = error.bare
+            return False
+        new, note = result
+        if note:
+            self.notes["fibers.fiber_radius"] = note
+            self.pending.pop("fibers.fiber_radius", None)
+            self.errors.pop("fibers.fiber_radius", None)
+        if new == self.params:
+            return False
+        if undoable:
+            self._push_undo()
+        self._set_params(new, edited=True)
+        return True
+
+    def _try(self, candidate: dict[str, Any], accepted: dict[str, Any]) -> tuple[Params, str] | None:
+        candidate, note = _clamped(candidate, accepted)
+        try:
+            return Params(candidate), note
+        except ParamError:
+            return None
+
+    @staticmethod
+    def _relation_error(candidate: dict[str, Any], accepted: dict[str, Any]) -> ParamError:
+        try:
+            Params(_clamped(candidate, accepted)[0])
+        except ParamError as e:
+            return e
+        return ParamError("these values do not work together")
+
+    def _set_params(self, new: Params, *, edited: bool) -> None:
+        self.params = new
+        self.touch()
+        if edited:
+            self.last_edit = now()
+
+    def reset_key(self, key: str) -> bool:
+        """Back to the SPEC default (right-click > Reset to default)."""
+        return self.edit(key, BY_KEY[key].default)
+
+    # --- undo --------------------------------------------------------------------------------------
+    def undo(self) -> bool:
+        if not self._undo:
+            self.status = "nothing to undo"
+            return False
+        self._redo.append(self.params)
+        self._replace_all(self._undo.pop())
+        self.status = "undo"
+        return True
+
+    def redo(self) -> bool:
+        if not self._redo:
+            self.status = "nothing to redo"
+            return False
+        self._undo.append(self.params)
+        self._replace_all(self._redo.pop())
+        self.status = "redo"
+        return True
+
+    def _replace_all(self, params: Params) -> None:
+        self.pending.clear()
+        self.errors.clear()
+        self.notes.clear()
+        self._gesture_open = False
+        self._set_params(params, edited=True)
+
+    def clear_history(self) -> None:
+        self._undo.clear()
+        self._redo.clear()
+        self._gesture_open = False
+
+    # --- camera ------------------------------------------------------------------------------------
+    def set_camera(self, **values: Any) -> None:
+        """Navigation: camera.* without an undo step and without the unsaved-changes mark."""
+        self.edit_many({f"camera.{k}": v for k, v in values.items()}, undoable=False)
+
+    def frame_all(self) -> None:
+        self.set_camera(target=(0.0, 0.0, 0.0), distance=0.0)
+        self.status = "framed the whole scene"
+
+    def reset_camera(self) -> None:
+        base = self.saved if self.saved is not None else Params()
+        self.set_camera(**{k.split(".", 1)[1]: base[k] for k in base if k.startswith("camera.")})
+        self.status = "camera reset to the preset's"
+
+    # --- errors ------------------------------------------------------------------------------------
+    def show_error(self, message: str, key: str | None = None) -> None:
+        self.last_error = message
+        self.last_error_key = key
+        self.error_log.append(message)
+        self.status = "error: " + message.splitlines()[0]
+
+    def close_error(self) -> None:
+        self.last_error = None
+        self.last_error_key = None
+
+    # --- presets -----------------------------------------------------------------------------------
+    def guard(self, what: str, action: Callable[[], Any], discard: bool) -> bool:
+        """Run ``action`` now, or ask first when it would throw away unsaved changes. False when it asked
+        or when the action returned False (it failed and said why)."""
+        if self.dirty and not discard:
+            self.confirm = Confirm(f"{self.display_name} has unsaved changes. {what} anyway?", action)
+            return False
+        return action() is not False
+
+    def answer_confirm(self, answer: str) -> None:
+        """``discard``: go ahead; ``save``: save, then go ahead; ``cancel``: keep everything."""
+        pending, self.confirm = self.confirm, None
+        if pending is None or answer == "cancel":
+            self.status = "cancelled" if pending else self.status
+            return
+        if answer == "save" and not self.save():
+            return  # saving failed (no path, or an error dialog): do not discard
+        pending.action()
+
+    def open(self, target: str | os.PathLike[str], *, discard: bool = False) -> bool:
+        """Open a preset file (or a bundled preset by name). Asks before discarding changes."""
+        return self.guard(f"Open {target}", lambda: self._open_now(target), discard)
+
+    def _open_now(self, target: str | os.PathLike[str]) -> bool:
+        try:
+            preset = find_preset(target)
+        except PresetError as e:  # the scene is untouched: params stay what they were
+            self.show_error(str(e), e.key)
+            return False
+        self.adopt(preset)
+        self.status = f"opened {preset.path or target}"
+        return True
+
+    def adopt(self, preset: Preset) -> None:
+        """Make a loaded preset the current document."""
+        self.pending.clear()
+        self.errors.clear()
+        self.notes.clear()
+        self._undo.clear()
+        self._redo.clear()
+        self.saved = preset.params
+        self.preset_path = Path(preset.path) if preset.path else None
+        self.preset_name = preset.name
+        self.preset_description = preset.description
+        self._set_params(preset.params, edited=True)
+
+    def open_groom(self, path: str | os.PathLike[str]) -> bool:
+        """Put a groom file's strands under the current look: scene.generator = 'groom' with the file,
+        as one undoable edit (the look, fibers and quality stay, so a look can be tried on a groom)."""
+        absolute = str(Path(path).expanduser().resolve())
+        if not Path(absolute).is_file():
+            self.show_error(f"no groom file {str(path)!r}", "scene.groom_file")
+            return False
+        self.begin_gesture()
+        changed = self.edit_many({"scene.generator": "groom", "scene.groom_file": absolute})
+        self.end_gesture()
+        if "scene.generator" in self.errors:
+            self.show_error(self.errors["scene.generator"], "scene.generator")
+            return False
+        self.frame_all()
+        self.status = f"groom {Path(path).name}"
+        return changed or self.params["scene.groom_file"] == absolute
+
+    def save(self) -> bool:
+        """Save to the current file; without one, ask for a path (the gui opens Save As)."""
+        if self.preset_path is None:
+            self.commands.append(("ask_save_as", {}))
+            return False
+        return self.save_as(self.preset_path)
+
+    def save_as(self, path: str | os.PathLike[str], name: str | None = None,
+                description: str | None = None) -> bool:
+        path = Path(path)
+        if path.suffix == "":
+            path = path.with_suffix(".toml")
+        name = self.preset_name if name is None else name
+        description = self.preset_description if description is None else description
+        try:
+            save_preset(path, self.params, name, description)  # atomic: temp file + rename
+        except (OSError, TypeError, ValueError) as e:
+            self.show_error(f"{path}: could not save the preset: {getattr(e, 'strerror', None) or e}")
+            return False
+        self.saved = self.params
+        self.preset_path = path
+        self.preset_name, self.preset_description = name, description
+        self.status = f"saved {path}"
+        return True
+
+    def revert(self, *, discard: bool = False) -> bool:
+        """Back to the file on disk (re-read, so edits made elsewhere show up)."""
+        if self.preset_path is None and self.saved is None:
+            return self.guard("Revert to defaults", lambda: self.adopt(Preset("", "", Params())), discard)
+
+        def go() -> bool:
+            if self.preset_path is not None:
+                try:
+                    preset = load_preset(self.preset_path)
+                except PresetError as e:
+                    self.show_error(str(e), e.key)
+                    return False
+            else:
+                preset = Preset(self.preset_name, self.preset_description, self.saved or Params())
+            self.adopt(preset)
+            self.status = "reverted"
+            return True
+        return self.guard("Revert", go, discard)
+
+    def request(self, command: str, **args: Any) -> None:
+        """Ask the app for something that needs the GPU or the window (screenshot, export, quit)."""
+        self.commands.append((command, args))
+
+    # --- for scripts and tests ----------------------------------------------------------------------
+    def report(self) -> dict[str, Any]:
+        s = self.stats
+        return {
+            "title": self.title, "dirty": self.dirty, "preset_path": str(self.preset_path or ""),
+            "last_error": self.last_error, "last_error_key": self.last_error_key,
+            "errors": dict(self.errors), "pending": {k: _jsonable(v) for k, v in self.pending.items()},
+            "notes": dict(self.notes), "scene_error": self.scene_error, "shader_error": self.shader_error,
+            "status": self.status, "view": self.view.view, "confirm": self.confirm.message if self.confirm else None,
+            "params": {k: _jsonable(v) for k, v in self.params.values.items()},
+            "stats": {
+                "frame_ms": s.frame_ms, "render_ms": s.render_ms, "render_clock": s.render_clock,
+                "render_size": list(s.render_size), "label": s.label, "samples": list(s.samples),
+                "fibers_41": s.fibers_41, "fibers_exact": s.fibers_exact, "guides": s.guides,
+                "segments": s.segments, "scene_gpu_bytes": s.scene_gpu_bytes, "explicit_bytes": s.explicit_bytes,
+                "tests_per_pixel": s.tests_per_pixel, "edit_latency_ms": s.edit_latency_ms,
+                "gl_renderer": s.gl_renderer, "gl_error": s.gl_error,
+            },
+        }
+
+
+def _clamped(candidate: dict[str, Any], accepted: dict[str, Any]) -> tuple[dict[str, Any], str]:
+    """Changing the ring count pulls the fiber radius down to 0.5 / rings; the note says why."""
+    if "fibers.rings" not in accepted or "fibers.fiber_radius" in accepted:
+        return candidate, ""
+    rings = candidate["fibers.rings"]
+    limit = max_fiber_radius(rings)
+    fr = candidate["fibers.fiber_radius"]
+    if fr <= limit * (1 + 1e-12):
+        return candidate, ""
+    note = (f"clamped from {fr:g} to {limit:g} = 0.5 / {rings} rings: each ring is 1/{rings} of the "
+            "container radius wide, and a fiber must fit inside its ring")
+    return {**candidate, "fibers.fiber_radius": limit}, note
+
+
+def _valid_alone(key: str, value: Any) -> bool:
+    try:
+        BY_KEY[key].check(value)
+    except ParamError:
+        return False
+    return True
+
+
+def _jsonable(v: Any) -> Any:
+    return list(v) if isinstance(v, tuple) else v
+
+
+def is_groom_path(target: str) -> bool:
+    return Path(target).suffix.lower() in GROOM_SUFFIXES
+
+
+def spec_keys() -> list[str]:
+    return [p.key for p in SPEC]

@@ -1,0 +1,452 @@
+"""The lookdev viewer: its state rules without a window, then whole scripted sessions under Xvfb.
+
+The scripted sessions start ``python -m app.viewer.app --script FILE`` under ``xvfb-run -a`` in a
+subprocess (a glfw window cannot share the test process's headless context) and read the JSON lines the
+script prints (``vfiber-script: {...}``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from app.params import SPEC, Param, Params
+from app.presets import load_preset, save_preset
+from app.viewer.navigate import CameraController, Input, make_camera
+from app.viewer.script import PREFIX, ScriptError, parse_script
+from app.viewer.state import AppState, explicit_bytes
+
+ROOT = Path(__file__).resolve().parents[1]
+XVFB = shutil.which("xvfb-run")
+needs_xvfb = pytest.mark.skipif(XVFB is None, reason="xvfb-run not found: apt-get install xvfb xauth "
+                                                     "(the viewer needs an X display for its glfw window)")
+
+
+# --------------------------------------------------------------------------------------------------
+# state rules (no GL, no imgui)
+
+def test_bad_value_stays_pending_with_the_reason_and_the_render_keeps_the_last_valid_params():
+    s = AppState()
+    before = s.params
+    assert not s.edit("fibers.rings", 500)
+    assert s.params == before
+    assert s.pending["fibers.rings"] == 500
+    assert "fibers.rings" in s.errors and "[1, 64]" in s.errors["fibers.rings"]
+    assert s.edit("fibers.rings", 12)                       # a good value clears it
+    assert "fibers.rings" not in s.pending and "fibers.rings" not in s.errors
+
+
+def test_more_rings_clamp_the_fiber_radius_and_say_why():
+    s = AppState()
+    s.edit("fibers.fiber_radius", 0.05)                     # fits 10 rings (0.5 / 10)
+    assert s.edit("fibers.rings", 40)
+    assert s.params["fibers.fiber_radius"] == pytest.approx(0.5 / 40)
+    assert "0.5 / 40" in s.notes["fibers.fiber_radius"]
+    s.edit("fibers.fiber_radius", 0.01)                     # touching the radius retires the note
+    assert "fibers.fiber_radius" not in s.notes
+
+
+def test_a_combination_error_shows_inline_and_applies_once_the_other_field_is_fixed():
+    s = AppState()
+    assert not s.edit("scene.generator", "groom")           # needs scene.groom_file
+    assert s.params["scene.generator"] == "carpet"
+    assert "groom_file" in s.errors["scene.generator"]
+    assert s.edit("look.roughness", 0.5)                    # unrelated edits still go through
+    assert s.params["look.roughness"] == 0.5 and s.pending == {"scene.generator": "groom"}
+    assert s.edit("scene.groom_file", "/tmp/some.hair")
+    assert s.params["scene.generator"] == "groom" and not s.pending and not s.errors
+
+
+def test_several_keys_at_once_apply_the_independent_ones():
+    s = AppState()
+    s.edit_many({"fibers.rings": 64, "scene.generator": "groom"})
+    assert s.params["fibers.rings"] == 64
+    assert s.pending == {"scene.generator": "groom"}
+
+
+def test_camera_moves_do_not_mark_the_preset_modified_but_edits_do():
+    s = AppState()
+    s.saved = s.params
+    s.set_camera(azimuth=75.0)
+    assert s.params["camera.azimuth"] == 75.0 and not s.dirty and "*" not in s.title
+    s.edit("look.exposure", 1.0)
+    assert s.dirty and "*" in s.title
+    s.reset_camera()
+    assert s.params["camera.azimuth"] == Params()["camera.azimuth"]
+
+
+def test_undo_takes_back_one_gesture_and_redo_restores_it():
+    s = AppState()
+    s.begin_gesture()
+    for v in (0.1, 0.2, 0.3):                               # one slider drag = one undo step
+        s.edit("look.exposure", v)
+    s.end_gesture()
+    s.begin_gesture()
+    s.edit("fibers.rings", 20)
+    s.end_gesture()
+    assert s.undo() and s.params["fibers.rings"] == 10 and s.params["look.exposure"] == 0.3
+    assert s.undo() and s.params["look.exposure"] == 0.0
+    assert not s.undo()
+    assert s.redo() and s.params["look.exposure"] == 0.3
+
+
+def test_opening_a_bad_preset_names_key_and_problem_and_changes_nothing(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('version = 2\n[fibers]\nrings = "many"\n')
+    s = AppState()
+    s.edit("look.exposure", 2.0)
+    before = s.params
+    assert not s.open(bad, discard=True)
+    assert s.params == before
+    assert "fibers.rings" in s.last_error and "bad.toml:3" in s.last_error
+    assert s.last_error_key == "fibers.rings"
+
+
+def test_save_as_then_open_round_trips_and_clears_the_mark(tmp_path):
+    s = AppState()
+    s.edit_many({"fibers.rings": 16, "look.color": (0.8, 0.5, 0.3)})
+    path = tmp_path / "look"                                # .toml is added
+    assert s.save_as(path, "Look", "warm brown")
+    assert not s.dirty and s.preset_path == tmp_path / "look.toml"
+    assert load_preset(s.preset_path).params == s.params
+    t = AppState()
+    assert t.open(s.preset_path)
+    assert t.params == s.params and t.preset_name == "Look" and not t.dirty
+
+
+def test_discarding_changes_asks_first(tmp_path):
+    path = tmp_path / "other.toml"
+    save_preset(path, Params({"fibers.rings": 5}))
+    s = AppState()
+    s.edit("fibers.rings", 30)
+    assert not s.open(path)                                 # unsaved changes: a question, nothing opened
+    assert s.confirm is not None and s.params["fibers.rings"] == 30
+    s.answer_confirm("cancel")
+    assert s.params["fibers.rings"] == 30 and s.confirm is None
+    s.open(path)
+    s.answer_confirm("discard")
+    assert s.params["fibers.rings"] == 5
+
+
+def test_every_parameter_gets_a_widget_and_a_new_one_would_too():
+    pytest.importorskip("imgui_bundle")
+    from app.viewer.gui import SECTIONS, widget_kind
+
+    kinds = {p.key: widget_kind(p) for p in SPEC}
+    assert set(kinds.values()) <= {"checkbox", "combo", "text", "color", "drag3", "slider_int", "input_int",
+                                   "drag_int", "fiber_radius", "slider_float", "drag_float"}
+    assert kinds["look.color"] == "color" and kinds["quality.mode"] == "combo"
+    assert widget_kind(Param("new.flag", bool, False, "a new switch")) == "checkbox"
+    assert widget_kind(Param("new.amount", float, 0.5, "a new amount", 0.0, 1.0)) == "slider_float"
+    covered = {g for _, gs in SECTIONS for g in gs}
+    assert {"scene", "fibers", "shape", "look", "quality", "camera"} <= covered
+
+
+def test_explicit_storage_formula():
+    # 3600 fibers per container x 24 segments x 2 vertices x 16 bytes
+    assert explicit_bytes(3600, 24) == 3600 * 24 * 2 * 16
+
+
+# --------------------------------------------------------------------------------------------------
+# camera controller (no window: input snapshots in, camera.* out)
+
+def _scene():
+    from app.scene.generators import build_scene
+    return build_scene(Params())
+
+
+def test_orbit_pan_zoom_and_frame_all():
+    s, scene, nav = AppState(), _scene(), CameraController()
+    vp = (1280, 720)
+    p0 = s.params
+    nav.update(s, scene, Input(dx=100, left=True), vp)
+    assert s.params["camera.azimuth"] == pytest.approx(p0["camera.azimuth"] - 35.0)
+    nav.update(s, scene, Input(dy=-1000, left=True), vp)    # elevation stops short of the pole
+    assert s.params["camera.elevation"] == pytest.approx(-89.9)
+    cam = make_camera(s.params, scene, vp[0] / vp[1])
+    auto = np.linalg.norm(cam.position - cam.target)
+    nav.update(s, scene, Input(wheel=2), vp)                # zoom starts from the automatic distance
+    assert s.params["camera.distance"] == pytest.approx(auto * 0.88 ** 2, rel=1e-6)
+    before = make_camera(s.params, scene, vp[0] / vp[1])
+    nav.update(s, scene, Input(dx=50, middle=True), vp)     # pan: the target slides along the view's right
+    after = make_camera(s.params, scene, vp[0] / vp[1])
+    right = before.basis()[0]
+    move = after.target - before.target
+    assert np.dot(move, right) < 0 and abs(np.dot(move, before.basis()[2])) < 1e-9 * np.linalg.norm(move) + 1e-12
+    nav.update(s, scene, Input(keys={"F"}), vp)
+    assert s.params["camera.distance"] == 0.0 and s.params["camera.target"] == (0.0, 0.0, 0.0)
+    nav.update(s, scene, Input(keys={"T"}), vp)
+    assert s.view.turntable
+    assert not s.dirty or s.saved is None                   # navigation never counts as an edit
+
+
+# --------------------------------------------------------------------------------------------------
+# the GL side on the session's headless context: both frame paths must show the same pixels
+
+def test_direct_and_readback_frame_paths_show_the_same_image(ctx, renderer):
+    from app.viewer.display import ViewportRenderer, supersample_offsets
+
+    p = Params({"quality.supersample": 2})
+    scene = _scene()
+    size = (160, 100)
+    cam = make_camera(p, scene, size[0] / size[1])
+    vp = ViewportRenderer(ctx, renderer, renderer.programs)
+    vp.set_scene(scene)
+    vp.resize(size)
+    try:
+        for view in ("shaded", "fiber ids", "rings", "normals", "depth", "proxies"):
+            images = []
+            for path in ("direct", "readback"):
+                vp.invalidate()
+                vp.render_sample(p, cam, "exact", (0.0, 0.0), path, with_ids=True)
+                images.append(vp.display_offscreen(size, view, p, cam, scene, 1.0).astype(int))
+            assert np.abs(images[0] - images[1]).max() <= 1, view
+            assert len(np.unique(images[0].reshape(-1, 3), axis=0)) > 5, f"{view} is (almost) flat"
+        # the progressive final frame: quality.supersample^2 single-ray samples averaged on the GPU equal
+        # the same samples averaged in numpy through the public API
+        vp.invalidate()
+        want = np.zeros(size[::-1] + (3,))
+        for offset in supersample_offsets(2):
+            vp.render_sample(p, cam, "exact", offset, "direct", with_ids=False)
+            want += renderer.render(p, cam, size, outputs=("color",), offset=offset, antialias=False).color
+        shown = vp.display_offscreen(size, "shaded", p, cam, scene, 1.0).astype(int)
+        assert vp.samples == 4
+        assert np.abs(shown - np.round(want / 4)).max() <= 1
+    finally:
+        vp.release()
+
+
+# --------------------------------------------------------------------------------------------------
+# script format
+
+def test_script_parsing_names_the_bad_step():
+    assert len(parse_script({"steps": [{"wait": 2}, {"set": {"fibers.rings": 3}}]}).steps) == 2
+    assert parse_script([{"quit": 0}]).steps == [{"quit": 0}]
+    with pytest.raises(ScriptError, match="step 2"):
+        parse_script({"steps": [{"wait": 1}, {"wiat": 1}]})
+    with pytest.raises(ScriptError, match="unknown option"):
+        parse_script({"steps": [{"wait": 1, "colour": 2}]})
+    with pytest.raises(ScriptError, match="size"):
+        parse_script({"size": [0, 3], "steps": []})
+
+
+# --------------------------------------------------------------------------------------------------
+# whole sessions under Xvfb
+
+def _viewer(script: dict, tmp_path: Path, *extra: str, timeout: float = 300) -> tuple[list[dict], str, int]:
+    path = tmp_path / "session.json"
+    path.write_text(json.dumps(script))
+    cmd = [XVFB, "-a", "-s", "-screen 0 1280x1024x24", sys.executable, "-m", "app.viewer.app",
+           "--script", str(path), *extra]
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    proc = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=timeout)
+    lines = [json.loads(line[len(PREFIX):]) for line in proc.stdout.splitlines() if line.startswith(PREFIX)]
+    return lines, proc.stderr, proc.returncode
+
+
+def _merged(lines: list[dict]) -> dict:
+    out: dict = {}
+    for line in lines:
+        for k, v in line.items():
+            out.setdefault(k, []).append(v)
+    return out
+
+
+def _png(path: Path) -> np.ndarray:
+    from PIL import Image
+    return np.asarray(Image.open(path).convert("RGB")).astype(np.int16)
+
+
+@needs_xvfb
+def test_scripted_session_renders_reacts_saves_and_survives_a_bad_preset(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('version = 2\n[fibers]\nrings = "many"\n')
+    saved = tmp_path / "look.toml"
+    t = tmp_path
+    script = {"size": [800, 450], "steps": [
+        {"wait_final": True},
+        {"grab": str(t / "window.png")},                         # what the window shows (no UI)
+        {"screenshot": str(t / "a.png"), "size": [256, 160]},   # offscreen, through the Renderer
+        {"set": {"fibers.rings": 24, "look.color": [0.85, 0.3, 0.2], "look.light_azimuth": 120.0}},
+        {"wait": 3},
+        {"print": "label"},
+        {"screenshot": str(t / "b.png"), "size": [256, 160]},
+        {"save": str(saved), "name": "Test look"},
+        {"wait_final": True},
+        {"grab": str(t / "before.png")},
+        {"print": "params"},
+        {"open": str(bad)},
+        {"wait": 2},
+        {"wait_final": True},
+        {"grab": str(t / "after.png")},
+        {"print": "last_error"},
+        {"print": "params"},
+        {"print": "dirty"},
+        {"print": "gl_error"},
+        {"print": "stats"},
+        {"quit": 0},
+    ]}
+    lines, err, rc = _viewer(script, tmp_path)
+    assert rc == 0, err
+    got = _merged(lines)
+
+    # the window rendered fibers: many pixels differ from the background
+    win = _png(t / "window.png")
+    bg = np.round(np.asarray(Params()["look.background"]) ** (1 / 2.2) * 255)
+    fibers = np.abs(win - bg).max(axis=2) > 12
+    assert fibers.mean() > 0.02, "the window shows (almost) only background"
+
+    # a slider change changed the image (same size, same camera)
+    a, b = _png(t / "a.png"), _png(t / "b.png")
+    assert a.shape == b.shape == (160, 256, 3)
+    assert np.abs(a - b).max() > 40 and (np.abs(a - b).max(axis=2) > 8).mean() > 0.01
+    assert got["label"][0].startswith(("interactive", "final"))
+
+    # no GL error anywhere in the session
+    assert got["gl_error"] == [[]], got["gl_error"]
+    assert "OpenGL error" not in err
+
+    # the saved preset loads back equal to what was on screen
+    on_screen = Params({k: tuple(v) if isinstance(v, list) else v for k, v in got["params"][0].items()})
+    assert load_preset(saved).params == on_screen
+    assert load_preset(saved).name == "Test look"
+
+    # the bad preset: an error naming the key and the problem; params, scene and image untouched
+    assert "fibers.rings" in got["last_error"][0] and "integer" in got["last_error"][0]
+    assert got["params"][1] == got["params"][0]
+    assert got["dirty"] == [False]
+    assert np.array_equal(_png(t / "before.png"), _png(t / "after.png"))
+
+    stats = got["stats"][0]
+    assert stats["fibers_exact"] > 0 and stats["scene_gpu_bytes"] > 0
+    assert stats["explicit_bytes"] > 100 * stats["scene_gpu_bytes"]
+    assert stats["tests_per_pixel"] is not None and stats["tests_per_pixel"] > 0
+
+
+@needs_xvfb
+def test_debug_views_and_proxies_render_distinct_images(tmp_path):
+    steps = [{"viewer": {"show_panel": False, "show_stats": False}}]
+    views = ["shaded", "fiber ids", "rings", "normals", "depth", "heat map", "proxies"]
+    for i, view in enumerate(views):
+        steps += [{"view": view}, {"wait_final": True}, {"grab": str(tmp_path / f"v{i}.png")}]
+    steps += [{"print": "gl_error"}, {"quit": 0}]
+    lines, err, rc = _viewer({"size": [480, 300], "steps": steps}, tmp_path)
+    assert rc == 0, err
+    assert _merged(lines)["gl_error"] == [[]]
+    images = [_png(tmp_path / f"v{i}.png") for i in range(len(views))]
+    for i in range(len(views)):
+        for j in range(i + 1, len(views)):
+            assert np.abs(images[i] - images[j]).max() > 30, f"{views[i]} looks like {views[j]}"
+    ids = images[1].reshape(-1, 3)
+    assert len(np.unique(ids, axis=0)) > 200                 # fibers hashed to many colours
+
+
+@needs_xvfb
+def test_shader_hot_reload_keeps_the_last_good_program_and_recovers(tmp_path):
+    glsl = tmp_path / "glsl"
+    shutil.copytree(ROOT / "glsl", glsl)
+    target = glsl / "viewer" / "display.frag"
+    good = target.read_text()
+    script = {"size": [480, 300], "steps": [
+        {"viewer": {"show_panel": False}},
+        {"wait_final": True},
+        {"grab": str(tmp_path / "good.png")},
+        {"echo": "ready"},
+        {"wait_for": "shader_error", "timeout": 60},
+        {"print": "shader_error"},
+        {"wait": 2},
+        {"grab": str(tmp_path / "during.png")},
+        {"echo": "broken-seen"},
+        {"wait_for": "not:shader_error", "timeout": 60},
+        {"wait_final": True},
+        {"grab": str(tmp_path / "after.png")},
+        {"print": "gl_error"},
+        {"quit": 0},
+    ]}
+    path = tmp_path / "reload.json"
+    path.write_text(json.dumps(script))
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    proc = subprocess.Popen([XVFB, "-a", "-s", "-screen 0 1280x1024x24", sys.executable, "-m", "app.viewer.app", "--script", str(path),
+                             "--glsl-root", str(glsl)], cwd=ROOT, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    lines: list[dict] = []
+    deadline = time.monotonic() + 300
+    try:
+        for raw in proc.stdout:
+            if not raw.startswith(PREFIX):
+                continue
+            line = json.loads(raw[len(PREFIX):])
+            lines.append(line)
+            if line.get("echo") == "ready":
+                time.sleep(0.05)
+                target.write_text(good.replace("void main() {", "void main() {\n    this is not glsl;", 1))
+            elif line.get("echo") == "broken-seen":
+                target.write_text(good)
+                os.utime(target, (time.time() + 2, time.time() + 2))   # a new mtime even on coarse clocks
+            assert time.monotonic() < deadline
+        rc = proc.wait(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    err = proc.stderr.read()
+    assert rc == 0, err
+    got = _merged(lines)
+    message = got["shader_error"][0]
+    assert "glsl/viewer/display.frag:" in message              # glsl/FILE:LINE, the broken line
+    line_no = int(message.split("glsl/viewer/display.frag:")[1].split(":")[0])
+    assert good.splitlines()[line_no - 2].strip().startswith("void main()")
+    good_img, during, after = (_png(tmp_path / f"{n}.png") for n in ("good", "during", "after"))
+    assert np.array_equal(good_img, during)                    # the last good program stayed on screen
+    assert np.array_equal(good_img, after)
+    assert got["gl_error"] == [[]]
+
+
+@needs_xvfb
+def test_resize_turntable_and_keys(tmp_path):
+    steps = [
+        {"viewer": {"show_panel": False}},
+        {"wait_final": True},
+        {"grab": str(tmp_path / "small.png")},
+        {"resize": [640, 420]},
+        {"wait": 2},
+        {"wait_final": True},
+        {"grab": str(tmp_path / "big.png")},
+        {"print": "params"},
+        {"key": "T"},                                     # turntable on: the azimuth advances by itself
+        {"wait": 4},
+        {"key": "T"},
+        {"print": "params"},
+        {"mouse": [[200, 150], [200, 150, "down"], [230, 150], [260, 150], [260, 150, "up"]]},  # orbit
+        {"wheel": 3},                                     # zoom
+        {"wait": 1},
+        {"print": "params"},
+        {"key": "HOME"},                                  # back to the preset's camera
+        {"wait": 1},
+        {"print": "params"},
+        {"turntable": 90, "frames": 2, "prefix": str(tmp_path / "tt"), "size": [96, 64]},
+        {"print": "dirty"},
+        {"print": "gl_error"},
+        {"quit": 0},
+    ]
+    lines, err, rc = _viewer({"size": [480, 300], "steps": steps}, tmp_path)
+    assert rc == 0, err
+    got = _merged(lines)
+    small, big = _png(tmp_path / "small.png"), _png(tmp_path / "big.png")
+    assert small.shape[1] == 480 and big.shape[1] == 640 and big.shape[0] > small.shape[0]
+    az = [p["camera.azimuth"] for p in got["params"]]
+    assert az[1] != az[0]                                 # the turntable turned
+    assert az[2] != az[1] and got["params"][2]["camera.distance"] > 0
+    assert got["params"][3]["camera.azimuth"] == got["params"][0]["camera.azimuth"]
+    assert got["params"][3]["camera.distance"] == 0.0
+    assert got["dirty"] == [False]                        # navigation is not an unsaved change
+    assert got["gl_error"] == [[]]
+    t0, t1 = _png(tmp_path / "tt0000.png"), _png(tmp_path / "tt0001.png")   # a turntable, offscreen
+    assert t0.shape == (64, 96, 3) and np.abs(t0 - t1).max() > 30
