@@ -450,3 +450,35 @@ def test_resize_turntable_and_keys(tmp_path):
     assert got["gl_error"] == [[]]
     t0, t1 = _png(tmp_path / "tt0000.png"), _png(tmp_path / "tt0001.png")   # a turntable, offscreen
     assert t0.shape == (64, 96, 3) and np.abs(t0 - t1).max() > 30
+
+
+@needs_xvfb
+def test_bundled_preset_menu_and_osl_export(tmp_path):
+    from app.presets import bundled_names
+
+    import importlib.util
+    names = bundled_names()
+    if not names:
+        pytest.skip("no bundled presets installed yet (presets/*.toml)")
+    steps = [{"set": {"look.exposure": 1.5}},
+             {"bundled": names[0], "discard": False},       # unsaved changes: a question first
+             {"print": "confirm"},
+             {"answer": "discard"},
+             {"wait": 1},
+             {"print": "title"}, {"print": "dirty"}, {"print": "params"}]
+    has_osl = importlib.util.find_spec("app.export.osl") is not None
+    if has_osl:
+        steps.append({"export_osl": str(tmp_path / "look.osl")})
+    steps += [{"print": "gl_error"}, {"quit": 0}]
+    lines, err, rc = _viewer({"size": [480, 300], "steps": steps}, tmp_path)
+    assert rc == 0, err
+    got = _merged(lines)
+    assert "unsaved changes" in got["confirm"][0]
+    assert got["dirty"] == [False] and "*" not in got["title"][0]
+    from app.presets import find_preset
+    bundled = find_preset(names[0]).params
+    on_screen = Params({k: tuple(v) if isinstance(v, list) else v for k, v in got["params"][0].items()})
+    assert on_screen == bundled
+    if has_osl:
+        assert (tmp_path / "look.osl").stat().st_size > 0
+    assert got["gl_error"] == [[]]

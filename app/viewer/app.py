@@ -329,10 +329,10 @@ class Viewer:
                 try:
                     self.screenshot(args["path"], args.get("size"), args.get("view", "shaded"))
                     s.status = f"saved {args['path']}"
-                except (OSError, ValueError) as e:
+                except Exception as e:  # a full disk, an MSAA count this GL lacks...: say it, stay up
                     s.show_error(f"{args['path']}: could not save the screenshot: {e}")
             elif command == "export_osl":
-                self._export_osl(args["path"])
+                self.export_osl(args["path"])
             elif command == "ask_save_as":
                 s.commands.insert(0, (command, args))  # the gui opens the dialog next frame
                 break
@@ -340,19 +340,21 @@ class Viewer:
     def _stop(self) -> None:
         self.exit_code = 0
 
-    def _export_osl(self, path: str) -> None:
+    def export_osl(self, path: str) -> bool:
+        """File > Export OSL: the current parameters as an OSL shader (app.export.osl, imported lazily)."""
         s = self.state
         try:
             from ..export import osl  # lazy: the exporter is optional
         except ImportError as e:
             s.show_error(f"OSL export is not available: {e}")
-            return
+            return False
         try:
             osl.export_osl(s.params, path)
         except Exception as e:  # whatever the exporter raises, the viewer stays up and says it
             s.show_error(f"{path}: OSL export failed: {e}")
-            return
+            return False
         s.status = f"exported {path}"
+        return True
 
     # --- scene -------------------------------------------------------------------------------------
     def _update_scene(self) -> None:
@@ -504,6 +506,7 @@ class Viewer:
             s.stats.label = f"interactive {pct} {mode}"
         s.stats.render_size = size
         s.stats.samples = (self.vp.samples, self._final_wanted)
+        s.stats.depth_range = self.vp.depth_range(cam, self.scene)
         return True
 
     def _heat_max(self) -> float:
@@ -610,6 +613,9 @@ class Viewer:
             img = self.vp.display_offscreen(size, view, s.params, cam, self.scene, self._heat_max())
             self.vp.resize(keep)
             self._shown_key = None
+        if size != self.vp.size:
+            self.renderer.release_targets()    # a 4K screenshot's targets are ~150 MB: do not keep them
+        self._shown_key = None                 # the view draws from the renderer's targets: redraw it
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         Image.fromarray(img).save(path)
 

@@ -96,8 +96,7 @@ def gui(state: AppState) -> Layout:
     layout = Layout(0.0, menu_h, max(dw - panel_w, 1.0), max(dh - menu_h, 1.0))
     if state.view.show_stats:
         _stats_overlay(state, layout)
-    if state.view.view == "heat map":
-        _heat_legend(state, layout)
+    _legends(state, layout)
     if state.view.show_help:
         _help_window(state)
     _dialogs(state, scratch)
@@ -536,29 +535,42 @@ def _stats_overlay(state: AppState, layout: Layout) -> None:
     imgui.end()
 
 
-def _heat_legend(state: AppState, layout: Layout) -> None:
-    s = state.stats
-    top = state.view.heat_max or s.tests_p99 or 1.0
+def _legends(state: AppState, layout: Layout) -> None:
+    """A colour scale under the views that map a number to a colour."""
+    s, view = state.stats, state.view.view
+    if view == "heat map":
+        top = state.view.heat_max or s.tests_p99 or 1.0
+        auto = "" if state.view.heat_max else " (top: 99th percentile)"
+        _legend(layout, "fiber tests per pixel" + auto, HEAT_STOPS, ("0", f"{top / 2:.0f}", f"{top:.0f}+"))
+    elif view == "rings":
+        k = state.params["fibers.rings"]
+        _legend(layout, "ring index", HEAT_STOPS[::-1], ("outer 0", "", f"inner {k - 1}"))
+    elif view == "depth":
+        near, far = s.depth_range
+        _legend(layout, "distance along the ray", ((1.0, 1.0, 1.0), (0.0, 0.0, 0.0)),
+                (f"{near:.3g}", "", f"{far:.3g}"))
+
+
+def _legend(layout: Layout, title: str, stops, labels: tuple[str, str, str]) -> None:
     if _overlay_begin("##legend", layout.x + 10, layout.y + layout.h - 10, (0.0, 1.0)):
-        imgui.text("fiber tests per pixel" + (" (auto: 99th percentile)" if not state.view.heat_max else ""))
+        imgui.text(title)
         dl = imgui.get_window_draw_list()
         pos = imgui.get_cursor_screen_pos()
         width, height = 260.0 * _ui_scale(), 14.0 * _ui_scale()
-        n = len(HEAT_STOPS) - 1
+        n = len(stops) - 1
         for i in range(n):
-            a, b = HEAT_STOPS[i], HEAT_STOPS[i + 1]
-            ca = imgui.get_color_u32(imgui.ImVec4(*a, 1.0))
-            cb = imgui.get_color_u32(imgui.ImVec4(*b, 1.0))
+            ca = imgui.get_color_u32(imgui.ImVec4(*stops[i], 1.0))
+            cb = imgui.get_color_u32(imgui.ImVec4(*stops[i + 1], 1.0))
             x0, x1 = pos.x + width * i / n, pos.x + width * (i + 1) / n
             dl.add_rect_filled_multi_color(imgui.ImVec2(x0, pos.y), imgui.ImVec2(x1, pos.y + height), ca, cb, cb, ca)
         imgui.dummy(imgui.ImVec2(width, height))
-        imgui.text("0")
-        mid = f"{top / 2:.0f}"
-        imgui.same_line(width / 2 - imgui.calc_text_size(mid).x / 2)
-        imgui.text(mid)
-        end = f"{top:.0f}+"
-        imgui.same_line(width - imgui.calc_text_size(end).x)
-        imgui.text(end)
+        left, mid, right = labels
+        imgui.text(left)
+        if mid:
+            imgui.same_line(width / 2 - imgui.calc_text_size(mid).x / 2)
+            imgui.text(mid)
+        imgui.same_line(width - imgui.calc_text_size(right).x)
+        imgui.text(right)
     imgui.end()
 
 

@@ -13,6 +13,7 @@ A script is a TOML or JSON file (by extension; JSON may also be a bare list of s
       { grab = "window.png" },               # the window's render area as displayed (no UI)
       { grab = "ui.png", ui = true, final = true },   # the whole window, once the final frame is in
       { save = "look.toml", name = "Look", description = "..." },          # atomic save as
+      { export_osl = "look.osl" },           # File > Export OSL (app.export.osl)
       { view = "heat map" },                 # a debug view (names in state.VIEWS)
       { viewer = { frame_path = "readback", interactive_scale = "25%", show_panel = false } },  # ViewSettings
       { key = "F" },                         # a viewer shortcut (camera keys, 1-7, T)
@@ -34,7 +35,7 @@ A script is a TOML or JSON file (by extension; JSON may also be a bare list of s
       { quit = 0 },                          # exit code; a script without quit leaves the window open
     ]
 
-Each printed line starts with ``vfiber-script: `` followed by JSON, so a caller can pick them out of
+The first key of a step is its action, the others its options. Each printed line starts with ``vfiber-script: `` followed by JSON, so a caller can pick them out of
 the output. A step that cannot run stops the script with exit code 2 and a message naming the step.
 """
 
@@ -57,7 +58,7 @@ if TYPE_CHECKING:
 PREFIX = "vfiber-script: "
 ACTIONS = ("open", "set", "wait", "wait_final", "screenshot", "grab", "save", "view", "key", "drag",
            "wheel", "answer", "turntable", "sweep", "bench", "print", "report", "echo", "quit", "revert",
-           "bundled", "open_groom", "wait_seconds", "viewer", "wait_for", "resize", "mouse")
+           "bundled", "open_groom", "wait_seconds", "viewer", "wait_for", "resize", "mouse", "export_osl")
 OPTIONS = {"size", "view", "name", "description", "button", "shift", "ctrl", "frames", "values",
            "quality", "discard", "prefix", "timeout", "final", "ui"}
 WAIT_FINAL_TIMEOUT_S = 300.0
@@ -102,10 +103,11 @@ def parse_script(doc: Any, source: str = "<script>") -> Script:
     for i, step in enumerate(doc["steps"], 1):
         if not isinstance(step, dict):
             raise ScriptError(f"{source}: step {i} = {step!r} should be a table like {{ wait = 3 }}")
-        actions = [k for k in step if k in ACTIONS]
-        if len(actions) != 1:
-            raise ScriptError(f"{source}: step {i} {step!r} needs exactly one action of: {', '.join(ACTIONS)}")
-        extra = set(step) - set(actions) - OPTIONS
+        action = next(iter(step), None)   # the first key is the action, the rest are its options
+        if action not in ACTIONS:
+            raise ScriptError(f"{source}: step {i} {step!r} should start with an action, one of: "
+                              f"{', '.join(ACTIONS)}")
+        extra = set(step) - {action} - OPTIONS
         if extra:
             raise ScriptError(f"{source}: step {i}: unknown option {sorted(extra)[0]!r}; options: "
                               f"{', '.join(sorted(OPTIONS))}")
@@ -208,7 +210,7 @@ class ScriptRunner:
     def _run(self, viewer: "Viewer", step: dict[str, Any]) -> bool:
         """Run one step; True when the script must wait for frames before the next."""
         state = viewer.state
-        action = next(k for k in step if k in ACTIONS)
+        action = next(iter(step))
         arg = step[action]
         if action == "set":
             if not isinstance(arg, dict):
@@ -231,6 +233,10 @@ class ScriptRunner:
         elif action == "save":
             if not state.save_as(str(arg), step.get("name"), step.get("description")):
                 raise ScriptError(f"save failed: {state.last_error}")
+        elif action == "export_osl":
+            if not viewer.export_osl(str(arg)):
+                raise ScriptError(f"export_osl failed: {state.last_error}")
+            emit(export_osl=str(arg))
         elif action == "wait":
             self._wait_frames = int(arg)
             return self._wait_frames > 0

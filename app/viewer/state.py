@@ -90,6 +90,7 @@ class Stats:
     cost_age_s: float = 0.0
     edit_latency_ms: float | None = None  # slider change -> the frame that shows it, on screen
     scene_build_ms: float = 0.0
+    depth_range: tuple[float, float] = (0.0, 1.0)   # what the depth view maps white .. black
     gl_renderer: str = ""
     gl_error: str = "GL_NO_ERROR"
 
