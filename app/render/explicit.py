@@ -1,0 +1,503 @@
+"""The conventional baseline: every fiber generated in numpy, stored in GPU buffers, rasterized as ribbons.
+
+The virtual renderer stores containers only and ray casts the fibers per pixel. This module is the other
+side of that trade, kept apart from it (the scene never holds per-fiber data; this renderer does). It draws
+*the same fibers*: the placement comes from the same ring layout and the same hash as the shader
+(``reference.ring_layout``; ``fiber_key``/``key_random`` are the GLSL's factored hash, checked against
+``reference.all_fibers``), mapped through the same container segments.
+
+Geometry, in words. Inside a container segment a virtual fiber is the vertical line (cx, cy) of unit space,
+so in the segment's local frame it is P(z) = p0 + w(z) (cx ex + cy ey) + z ez with w(z) = r0 + kappa z: a
+straight line in the world, clipped by the segment's root-side and tip-side joint planes, and cut at the
+height where the guide parameter reaches the fiber's v_end. With t = z / h that is
+
+    P(t) = mix(p0, p1, t) + mix(r0, r1, t) * d,   d = cx ex + cy ey  (world axes, |d| = |c| <= 1)
+
+for t in [t0, t1]. So each (segment, fiber) pair is one instance: d, t0 and t1 in half floats, plus the
+fiber's tint and roughness (8 bits each) -- 12 bytes -- and each segment row is stored once (the scene's
+80-byte row: ends, radii, joint planes, guide) and read per instance with an attribute divisor of F (fibers
+per container).
+Storing d and t, both O(1), rather than positions keeps half floats accurate at any scene scale: the error
+is ~2^-12 of the container radius across the fiber (about 2% of a default fiber's radius) and ~2^-12 of
+the segment's length along it. A fiber that is cut before a segment gets t0 = t1 there (no area).
+
+Drawing: one instanced draw of 4-vertex triangle strips; the vertex shader expands each end sideways,
+facing the camera, by the fiber's radius (fiber_radius * w); the fragment shader rebuilds the round fiber's
+normal across the ribbon and shades with ``shading/hair.glsl``, the virtual renderer's Kajiya-Kay. Depth is
+the rasterizer's, so the early depth test stays on; along one ray the order of depths is the order of
+distances, so the nearest fiber wins, as in the ray caster.
+
+Why vertex attributes rather than storage-buffer pulling: on llvmpipe the attribute fetch is compiled into
+the vertex pipeline and was about 10x faster than pulling the same data from storage buffers by
+gl_VertexID (86,400 fibers: 0.24 s against ~0.025 s of vertex work); a hardware GPU would not care.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass
+
+import moderngl
+import numpy as np
+
+from .. import reference
+from ..gl.shaders import ProgramCache
+from ..params import Params
+from ..scene.containers import SEGMENT_BYTES, Scene
+from .camera import Camera
+from .renderer import MAX_RINGS, Frame, light_direction
+
+DEFAULT_BUDGET_BYTES = 1 << 30     # 1 GiB of fiber buffers; on llvmpipe "GPU" memory is system memory
+INSTANCE_BYTES = 12                # per (segment, fiber): half4(d.xyz, t0), half t1, uint16 tint | rough
+ROW_BYTES = SEGMENT_BYTES          # per segment row: the scene's own row (p0 r0, p1 r1, n0 v0, n1 v1, fx guide)
+GEN_INSTANCES = 1 << 18            # (segment, fiber) pairs generated per numpy batch: bounds temporaries
+MAX_INSTANCES = 2**31 - 1          # gl_InstanceID is a signed int
+
+# The parameters the explicit geometry depends on: change one and the fibers must be rebuilt.
+GEOMETRY_KEYS = ("fibers.rings", "fibers.phi_step", "fibers.phi_increment", "fibers.even_spacing",
+                 "fibers.radial_jitter", "fibers.angular_jitter", "fibers.length_jitter", "fibers.hash",
+                 "fibers.seed")
+# Shape parameters that bend fibers inside a container. The baseline draws straight fibers (so does the
+# virtual shader today); ``ignored_shape`` names those set, so a comparison can say what it left out.
+SHAPE_KEYS = ("shape.ellipsoid", "shape.curl_amplitude", "shape.twist")
+
+
+class ExplicitBudgetError(MemoryError):
+    """The explicit fibers would need more GPU memory than the budget allows; nothing was allocated."""
+
+    def __init__(self, needed: int, budget: int, fibers: int, per_fiber: float):
+        self.needed, self.budget, self.fibers = needed, budget, fibers
+        most = int(budget // per_fiber) if per_fiber > 0 else 0
+        super().__init__(
+            f"explicit fibers need {_human(needed)} of GPU buffers for {fibers:,} fibers "
+            f"({per_fiber:.1f} bytes each), over the {_human(budget)} budget: the explicit method refuses "
+            f"rather than exhaust the machine. Fit at most ~{most:,} fibers (fewer containers or rings, a "
+            f"larger fibers.phi_step), raise the budget (ExplicitRenderer(ctx, budget_bytes=...)), or use the "
+            f"virtual method, whose memory does not grow with the number of fibers.")
+
+
+def _human(n: float) -> str:
+    for unit in ("B", "KiB", "MiB", "GiB"):
+        if abs(n) < 1024:
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1024
+    return f"{n:.1f} TiB"
+
+
+# --------------------------------------------------------------------------------------------------
+# Sizes, known before anything is generated
+# --------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Plan:
+    rows: int                      # container segments
+    guides: int                    # distinct guides (chains of segments)
+    fibers_per_container: int
+
+    @property
+    def fibers(self) -> int:
+        """Fibers drawn: one per guide and layout slot (a fiber runs through every segment of its guide)."""
+        return self.guides * self.fibers_per_container
+
+    @property
+    def instances(self) -> int:
+        return self.rows * self.fibers_per_container
+
+    @property
+    def gpu_bytes(self) -> int:
+        return max(1, self.instances) * INSTANCE_BYTES + max(1, self.rows) * ROW_BYTES
+
+    @property
+    def bytes_per_fiber(self) -> float:
+        return self.gpu_bytes / max(1, self.fibers)
+
+
+def plan(scene: Scene, p: Params) -> Plan:
+    guides = len(np.unique(scene.segments[:, 19])) if scene.n_segments else 0
+    return Plan(scene.n_segments, guides, reference.ring_layout(p).fibers_per_container)
+
+
+def estimate_bytes(scene: Scene, p: Params) -> int:
+    """Exact bytes of GPU buffers ``ExplicitRenderer.set_scene(scene, p)`` would allocate."""
+    return plan(scene, p).gpu_bytes
+
+
+# --------------------------------------------------------------------------------------------------
+# Fiber generation in numpy
+# --------------------------------------------------------------------------------------------------
+def fiber_key(seed: int, guide, ring, fiber) -> np.ndarray:
+    """The GLSL ``fiber_key`` (glsl/common/hash.glsl): hash of (seed, guide, ring, fiber), once per fiber.
+
+    ``reference.fiber_random(seed, g, r, f, ch)`` equals ``key_random(fiber_key(seed, g, r, f), ch)``; the
+    factored form hashes four rounds per fiber and one per channel instead of five per channel.
+    """
+    lb = reference.lowbias32
+    with np.errstate(over="ignore"):
+        h = lb(np.uint32(seed) + np.uint32(0x9E3779B9))
+    h = lb(h ^ np.asarray(guide, np.uint32))
+    h = lb(h ^ np.asarray(ring, np.uint32))
+    return lb(h ^ np.asarray(fiber, np.uint32))
+
+
+def key_random(key: np.ndarray, channel: int) -> np.ndarray:
+    return (reference.lowbias32(key ^ np.uint32(channel)) >> np.uint32(8)).astype(np.float64) / 16777216.0
+
+
+def fiber_centers(lay: reference.RingLayout, guides: np.ndarray):
+    """Unit-space centres and shading randoms of every fiber of ``guides`` (G,): arrays (G, F).
+
+    Returns (cx, cy, v_end, tint, rough); equal to ``reference.fiber_center`` fiber by fiber.
+    """
+    F = lay.fibers_per_container
+    ring = np.repeat(np.arange(lay.rings), lay.n)
+    j = np.arange(F) - np.repeat(lay.first, lay.n)
+    key = fiber_key(lay.seed, np.asarray(guides, np.uint32)[:, None], ring[None], j[None])
+    if lay.thesis_hash:
+        slot_deg = np.degrees(lay.rot[ring] + j * lay.dphi[ring])
+        ur, ua, ul = (np.broadcast_to(reference.thesis_random(slot_deg, ring, ch), key.shape)
+                      for ch in (reference.CH_RADIAL, reference.CH_ANGULAR, reference.CH_LENGTH))
+    else:
+        ur, ua, ul = (key_random(key, ch) for ch in (reference.CH_RADIAL, reference.CH_ANGULAR,
+                                                       reference.CH_LENGTH))
+    radius = lay.rho[ring] + (2.0 * ur - 1.0) * lay.max_dr[ring]
+    angle = lay.rot[ring] + j * lay.dphi[ring] + (2.0 * ua - 1.0) * lay.max_dphi[ring]
+    v_end = 1.0 - lay.length_jitter * ul
+    tint = key_random(key, reference.CH_TINT)
+    rough = key_random(key, reference.CH_ROUGH)
+    return radius * np.cos(angle), radius * np.sin(angle), v_end, tint, rough
+
+
+@dataclass
+class _Frames:
+    """Per segment row, float64, shapes (R, 3) or (R,): what ``reference.segment`` computes, batched."""
+    p0: np.ndarray
+    p1: np.ndarray
+    ex: np.ndarray
+    ey: np.ndarray
+    ez: np.ndarray
+    h: np.ndarray
+    r0: np.ndarray
+    r1: np.ndarray
+    n0: np.ndarray
+    n1: np.ndarray
+    v0: np.ndarray
+    v1: np.ndarray
+
+    @staticmethod
+    def of(rows: np.ndarray) -> "_Frames":
+        rows = rows.astype(np.float64)
+        p0, p1 = rows[..., 0:3], rows[..., 4:7]
+        axis = p1 - p0
+        h = np.linalg.norm(axis, axis=-1)
+        ez = axis / h[..., None]
+        fx = rows[..., 16:19]
+        ex = fx - ez * np.sum(fx * ez, -1, keepdims=True)
+        ex /= np.linalg.norm(ex, axis=-1, keepdims=True)
+        ey = np.cross(ez, ex)
+        return _Frames(p0, p1, ex, ey, ez, h, rows[..., 3], rows[..., 7], rows[..., 8:11], rows[..., 12:15],
+                       rows[..., 11], rows[..., 15])
+
+
+def _plane_z(fr: _Frames, cx: np.ndarray, cy: np.ndarray, n: np.ndarray, on_tip: bool) -> np.ndarray:
+    """Local height (R, F) where fiber (cx, cy) crosses its segment's root plane (n0 through p0) or tip
+    plane (n1 through p1). P(z) = p0 + (r0 + kappa z)(cx ex + cy ey) + z ez, so n . (P(z) - A) = 0 is
+    linear in z."""
+    q = cx * np.sum(fr.ex * n, -1)[:, None] + cy * np.sum(fr.ey * n, -1)[:, None]
+    en = np.sum(fr.ez * n, -1)[:, None]
+    h = fr.h[:, None]
+    kappa = ((fr.r1 - fr.r0) / fr.h)[:, None]
+    offset = -h * en if on_tip else 0.0          # n . (p0 - A)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = -(offset + fr.r0[:, None] * q) / (kappa * q + en)
+    return np.where(np.isfinite(z), z, h if on_tip else 0.0)
+
+
+def segment_fibers(scene: Scene, lay: reference.RingLayout, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every fiber of the segment rows ``rows`` (R,): the (R*F, 6) uint16 instance records (half d.xyz,
+    half t0, half t1, tint | rough << 8) and (R, F) t1 - t0 (0 where the fiber is absent)."""
+    fr = _Frames.of(scene.segments[rows])
+    guides = scene.segments[rows, 19].astype(np.uint32)
+    cx, cy, v_end, tint, rough = fiber_centers(lay, guides)                 # (R, F)
+    z0 = _plane_z(fr, cx, cy, fr.n0, on_tip=False)
+    z1 = _plane_z(fr, cx, cy, fr.n1, on_tip=True)
+    v0, v1, h = fr.v0[:, None], fr.v1[:, None], fr.h[:, None]
+    # a fiber stops where the guide parameter reaches v_end: never before the segment starts, nor past it
+    z_cut = (v_end - v0) / (v1 - v0) * h
+    z1 = np.where(v_end < v1, np.clip(z_cut, z0, np.maximum(z0, z1)), z1)
+    z1 = np.where(v_end <= v0, z0, z1)                                       # cut in an earlier segment
+    R, F = cx.shape
+    out = np.empty((R, F, 6), np.uint16)
+    half = np.empty((R, F, 5), np.float16)
+    half[..., 0] = cx * fr.ex[:, None, 0] + cy * fr.ey[:, None, 0]
+    half[..., 1] = cx * fr.ex[:, None, 1] + cy * fr.ey[:, None, 1]
+    half[..., 2] = cx * fr.ex[:, None, 2] + cy * fr.ey[:, None, 2]
+    half[..., 3] = z0 / h
+    half[..., 4] = z1 / h
+    half[..., 4] = np.where(v_end <= v0, half[..., 3], half[..., 4])         # exactly no length
+    out[..., :5] = half.view(np.uint16)
+    q8 = lambda u: np.minimum(255, np.round(u * 255.0)).astype(np.uint16)  # noqa: E731
+    out[..., 5] = q8(tint) | (q8(rough) << np.uint16(8))
+    return out.reshape(-1, 6), (z1 - z0) / h
+
+
+# --------------------------------------------------------------------------------------------------
+# The renderer
+# --------------------------------------------------------------------------------------------------
+@dataclass
+class BuildStats:
+    fibers: int = 0                # fibers (guides x fibers per container)
+    instances: int = 0             # (segment, fiber) ribbons
+    gpu_bytes: int = 0
+    seconds: float = 0.0           # generation + upload
+
+
+class ExplicitRenderer:
+    """The explicit (conventional) baseline: ``set_scene(scene, params)`` then ``render`` like ``Renderer``.
+
+    ``budget_bytes`` caps the GPU buffers it may allocate; ``set_scene`` computes them first and raises
+    ``ExplicitBudgetError`` (allocating nothing) above it.
+    """
+
+    def __init__(self, ctx: moderngl.Context, budget_bytes: int = DEFAULT_BUDGET_BYTES,
+                 programs: ProgramCache | None = None):
+        self.ctx = ctx
+        self.budget_bytes = int(budget_bytes)
+        self.programs = programs or ProgramCache()
+        self.scene: Scene | None = None
+        self.plan: Plan | None = None
+        self.stats = BuildStats()
+        self._key: tuple | None = None
+        self._warned: tuple[str, ...] = ()
+        self._rows: moderngl.Buffer | None = None
+        self._fibers: moderngl.Buffer | None = None
+        self._vaos: dict[int, moderngl.VertexArray] = {}
+        self._targets: dict[tuple, moderngl.Framebuffer] = {}
+        self._zeros: dict[tuple, tuple[bytes, bytes]] = {}
+        # bound while targets are released: moderngl restores the previous binding after creating a
+        # framebuffer, and rebinding a released one is an invalid operation
+        self._parking: moderngl.Framebuffer | None = None
+
+    # --- scene -------------------------------------------------------------------------------------
+    def set_scene(self, scene: Scene, p: Params) -> BuildStats:
+        """Generate every fiber of ``scene`` under ``p`` and upload it. Raises ExplicitBudgetError before
+        allocating anything if the buffers would not fit the budget."""
+        t0 = time.perf_counter()
+        pl = plan(scene, p)
+        if pl.gpu_bytes > self.budget_bytes:
+            raise ExplicitBudgetError(pl.gpu_bytes, self.budget_bytes, pl.fibers, pl.bytes_per_fiber)
+        if pl.instances > MAX_INSTANCES:
+            raise ExplicitBudgetError(pl.gpu_bytes, MAX_INSTANCES * INSTANCE_BYTES, pl.fibers,
+                                      pl.bytes_per_fiber)
+        self.release()
+        lay = reference.ring_layout(p)
+        self.scene, self.plan, self._key = scene, pl, _geometry_key(p)
+        rows = scene.segments if pl.rows else np.zeros((1, scene.segments.shape[1]), np.float32)
+        self._rows = self.ctx.buffer(np.ascontiguousarray(rows, np.float32).tobytes())
+        self._fibers = self.ctx.buffer(reserve=max(1, pl.instances) * INSTANCE_BYTES)
+        per_batch = max(1, GEN_INSTANCES // pl.fibers_per_container)
+        for a in range(0, pl.rows, per_batch):
+            recs, _ = segment_fibers(scene, lay, np.arange(a, min(pl.rows, a + per_batch)))
+            self._fibers.write(recs.tobytes(), offset=a * pl.fibers_per_container * INSTANCE_BYTES)
+        self.stats = BuildStats(pl.fibers, pl.instances, self.gpu_bytes, time.perf_counter() - t0)
+        return self.stats
+
+    @property
+    def gpu_bytes(self) -> int:
+        """Bytes of GPU buffers holding the fibers and their segments (render targets not included)."""
+        return sum(b.size for b in (self._rows, self._fibers) if b is not None)
+
+    def release(self) -> None:
+        """Free the fiber buffers (the renderer can take a new scene afterwards)."""
+        for vao in self._vaos.values():
+            vao.release()
+        self._vaos.clear()
+        for b in (self._rows, self._fibers):
+            if b is not None:
+                b.release()
+        self._rows = self._fibers = None
+
+    def release_targets(self) -> None:
+        if not self._targets:
+            return
+        if self._parking is None:
+            self._parking = self.ctx.framebuffer(self.ctx.renderbuffer((1, 1)))
+        self._parking.use()
+        for fbo in self._targets.values():
+            for a in fbo.color_attachments:
+                a.release()
+            if fbo.depth_attachment:
+                fbo.depth_attachment.release()
+            fbo.release()
+        self._targets.clear()
+
+    # --- drawing -----------------------------------------------------------------------------------
+    def program(self, p: Params) -> moderngl.Program:
+        defines = {"MAX_RINGS": MAX_RINGS, "SHADING_MODEL": SHADING_MODELS[p["look.model"]],
+                   # a traced shadow needs the virtual traversal; the baseline keeps the density estimate
+                   "SHADOW_MODE": 0 if p["look.self_shadow"] == "off" else 1}
+        return self.programs.get(self.ctx, "explicit/ribbon.vert", "explicit/ribbon.frag", defines)
+
+    def _vao(self, prog: moderngl.Program) -> moderngl.VertexArray:
+        key = id(prog)
+        if key not in self._vaos:
+            F = self.plan.fibers_per_container
+            vao = self.ctx.vertex_array(prog, [])
+            # per segment row, advanced once every F instances; per (segment, fiber), every instance
+            for name, cls, buf, fmt, offset, stride, divisor in (
+                    ("aRowA", "f", self._rows, "4f", 0, ROW_BYTES, F),
+                    ("aRowB", "f", self._rows, "4f", 16, ROW_BYTES, F),
+                    ("aRowC", "f", self._rows, "4f", 32, ROW_BYTES, F),
+                    ("aRowD", "f", self._rows, "4f", 48, ROW_BYTES, F),
+                    ("aGuide", "f", self._rows, "1f", 76, ROW_BYTES, F),
+                    ("aFiber", "f", self._fibers, "4f2", 0, INSTANCE_BYTES, 1),
+                    ("aEnd", "f", self._fibers, "1f2", 8, INSTANCE_BYTES, 1),
+                    ("aLook", "i", self._fibers, "1u2", 10, INSTANCE_BYTES, 1)):
+                vao.bind(prog[name].location, cls, buf, fmt, offset, stride, divisor)
+            self._vaos[key] = vao
+        return self._vaos[key]
+
+    def _target(self, size: tuple[int, int]) -> moderngl.Framebuffer:
+        if size not in self._targets:
+            att = [self.ctx.texture(size, 4, dtype="f1"), self.ctx.texture(size, 4, dtype="u4"),
+                   self.ctx.texture(size, 4, dtype="f4")]
+            self._targets[size] = self.ctx.framebuffer(att, self.ctx.depth_renderbuffer(size))
+        return self._targets[size]
+
+    def _set_uniforms(self, prog: moderngl.Program, p: Params, cam: Camera, size, offset) -> None:
+        lay = reference.ring_layout(p)
+        ring_first = np.zeros(MAX_RINGS, np.int32)
+        ring_first[:lay.rings] = lay.first
+        w, h = size
+        clip = cam.clip_from_camera(w / h).astype(np.float64)
+        # a sub-pixel ray offset moves the image the other way: shift NDC by -2 offset / size
+        shift = np.identity(4)
+        shift[0, 3], shift[1, 3] = -2.0 * offset[0] / w, -2.0 * offset[1] / h
+        clip = (shift @ clip).astype(np.float32)
+        values = {
+            "uRings": lay.rings, "uFibersPerContainer": lay.fibers_per_container,
+            "uFiberRadius": lay.fiber_radius,
+            "uSceneFromCamera": tuple(self.scene.origin - cam.position),
+            "uLightDir": tuple(light_direction(p)), "uLightIntensity": p["look.light_intensity"],
+            "uAmbient": p["look.ambient"], "uRoughness": p["look.roughness"],
+            "uTintVariation": p["look.tint_variation"], "uRoughnessVariation": p["look.roughness_variation"],
+            **_look_uniforms(p, lay.fibers_per_container),
+        }
+        for name, value in values.items():
+            if name in prog:
+                prog[name].value = value
+        if "uRingFirst" in prog:
+            prog["uRingFirst"].write(ring_first[:prog["uRingFirst"].array_length].tobytes())
+        prog["uClipFromCamera"].write(clip.T.copy().tobytes())
+
+    def render(self, p: Params, cam: Camera, size: tuple[int, int], *, outputs=("color", "ids"),
+               offset=(0.0, 0.0)) -> Frame:
+        """Rasterize every fiber. ``outputs``: any of color, ids, geom (normal xyz, distance). Fibers are
+        regenerated first if a fiber-layout parameter changed since ``set_scene`` (the explicit method's
+        price for a slider move; the virtual one only uploads uniforms)."""
+        if self.scene is None:
+            raise RuntimeError("ExplicitRenderer.render: call set_scene first")
+        if _geometry_key(p) != self._key:
+            self.set_scene(self.scene, p)
+        ignored = ignored_shape(p)
+        if ignored and ignored != self._warned:
+            warnings.warn(f"the explicit baseline draws straight fibers: {', '.join(ignored)} not drawn "
+                          f"(the virtual renderer draws them)", stacklevel=2)
+        self._warned = ignored
+        ctx = self.ctx
+        size = (int(size[0]), int(size[1]))
+        frame = Frame()
+        fbo = self._target(size)
+        fbo.use()
+        ctx.viewport = (0, 0) + size
+        self._clear(fbo, size)
+        ctx.disable(moderngl.BLEND)
+        ctx.disable(moderngl.CULL_FACE)
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.depth_func = "<"
+        prog = self.program(p)
+        self._set_uniforms(prog, p, cam, size, offset)
+        if self.plan.instances:
+            self._vao(prog).render(moderngl.TRIANGLE_STRIP, vertices=4, instances=self.plan.instances)
+            frame.draws = 1
+        if "color" in outputs:
+            rgba = _read(fbo, 0, "f1", size)
+            bg = np.asarray(p["look.background"])
+            bg8 = np.round(np.clip(bg, 0, 1) ** (1 / 2.2) * 255).astype(np.uint8)
+            frame.color = np.where(rgba[..., 3:4] > 0, rgba[..., :3], bg8)
+        if "ids" in outputs:
+            frame.ids = _read(fbo, 1, "u4", size)
+        if "geom" in outputs:
+            frame.geom = _read(fbo, 2, "f4", size)
+        return frame
+
+    def _clear(self, fbo: moderngl.Framebuffer, size) -> None:
+        # the virtual renderer's way: integer attachments cannot take glClear's float colour
+        if size not in self._zeros:
+            n = size[0] * size[1]
+            self._zeros[size] = (bytes(n * 4), bytes(n * 16))
+        small, big = self._zeros[size]
+        fbo.color_attachments[0].write(small)
+        fbo.color_attachments[1].write(big)
+        fbo.color_attachments[2].write(big)
+        mask = fbo.color_mask
+        fbo.color_mask = tuple((False,) * 4 for _ in fbo.color_attachments)
+        fbo.clear(depth=1.0)
+        fbo.color_mask = mask
+
+
+SHADING_MODELS = {"kajiya_kay": 0, "marschner": 1}
+
+
+def _look_uniforms(p: Params, fibers_per_container: int) -> dict:
+    """Colour, exposure and shadow inputs computed as the virtual renderer computes them (app/render/look.py
+    where present: melanin colours, fiber density)."""
+    try:
+        from . import look
+    except ImportError:  # an older checkout: RGB colour only, and the density the look module defines
+        return {"uBaseColor": tuple(p["look.color"]), "uExposure": p["look.exposure"],
+                "uShadowDensity": p["look.shadow_density"],
+                "uFiberDensity": fibers_per_container / np.pi * 2.0 * p["fibers.fiber_radius"]}
+    return {"uBaseColor": look.base_color(p), "uExposure": p["look.exposure"],
+            "uShadowDensity": p["look.shadow_density"],
+            "uFiberDensity": look.fiber_density(p, fibers_per_container)}
+
+
+def _geometry_key(p: Params) -> tuple:
+    return tuple(p[k] for k in GEOMETRY_KEYS)
+
+
+def _read(fbo: moderngl.Framebuffer, attachment: int, dtype: str, size) -> np.ndarray:
+    w, h = size
+    np_dtype = {"f1": np.uint8, "u4": np.uint32, "f4": np.float32}[dtype]
+    raw = fbo.read(viewport=(0, 0, w, h), components=4, attachment=attachment, dtype=dtype)
+    return np.frombuffer(raw, np_dtype).reshape(h, w, 4)[::-1].copy()
+
+
+def compare_frames(virtual: Frame, explicit: Frame) -> dict[str, float]:
+    """How alike two frames of the same scene are, from their ids: ``coverage_agree`` is the fraction of
+    all pixels where both show a fiber or both show background; ``covered_iou`` the pixels both cover over
+    those either covers; ``id_agree`` the fraction of pixels both cover whose (guide, ring, fiber) match;
+    with colour, ``color_diff`` is the mean absolute difference (0-255 per channel) where both cover."""
+    hv, he = virtual.ids[..., 0] > 0, explicit.ids[..., 0] > 0
+    either, both = hv | he, hv & he
+    same_id = np.all(virtual.ids[..., :3] == explicit.ids[..., :3], -1) & both
+    out = {
+        "coverage_agree": float(np.mean(hv == he)),
+        "covered_iou": float(both.sum() / max(1, either.sum())),
+        "id_agree": float(same_id.sum() / max(1, both.sum())),
+        "covered_virtual": float(hv.mean()),
+        "covered_explicit": float(he.mean()),
+    }
+    if virtual.color is not None and explicit.color is not None and both.any():
+        diff = np.abs(virtual.color.astype(np.int16) - explicit.color.astype(np.int16))
+        out["color_diff"] = float(diff[both].mean())
+    return out
+
+
+def ignored_shape(p: Params) -> tuple[str, ...]:
+    """Shape parameters set away from zero that the straight-fiber baseline does not draw."""
+    return tuple(k for k in SHAPE_KEYS if p[k] != 0.0)
+
+
+__all__ = ["DEFAULT_BUDGET_BYTES", "ExplicitBudgetError", "ExplicitRenderer", "Plan", "plan", "estimate_bytes",
+           "fiber_centers", "fiber_key", "key_random", "segment_fibers", "compare_frames", "ignored_shape"]
