@@ -246,7 +246,7 @@ class Renderer:
 
     def render(self, p: Params, cam: Camera, size: tuple[int, int], *, outputs=("color",),
                offset=(0.0, 0.0), mode: str | None = None, antialias: bool = True) -> Frame:
-        """Render the scene. ``outputs`` is any of color, ids, geom, cost, iters.
+        """Render the scene. ``outputs`` is any of color, ids, geom, cost, iters, draw (no read-back).
 
         With ``antialias``, colour honours quality.supersample (n x n rays per pixel in the shader) or
         quality.msaa (one ray per MSAA sample, shaded once). Brute force always casts one ray per pixel:
@@ -261,7 +261,8 @@ class Renderer:
         self._prepare_state()
         supersample = p["quality.supersample"] if antialias and mode != "brute" else 1
         msaa = self._msaa_samples(p) if antialias and mode != "brute" else 0
-        wants_pass = {"ids", "geom"} & set(outputs) or ("color" in outputs and not msaa)
+        # "draw" renders the frame without reading anything back (timing, the viewer's own display)
+        wants_pass = {"ids", "geom", "draw"} & set(outputs) or ("color" in outputs and not msaa)
         if wants_pass:
             fbo = self._target(size, cost=False)
             fbo.use()

@@ -99,8 +99,11 @@ def furball(p: Params) -> Scene:
     # sphere big enough that neighbouring roots sit ~2 radii apart
     sphere = max(p["scene.length"], math.sqrt(n * (2.0 * r) ** 2 / (4 * math.pi)))
     normals = fibonacci_sphere(n)
-    guides = [guide_polyline(nrm * sphere, nrm, p["scene.length"], p["scene.segments"], p["scene.bend"])
-              for nrm in normals]
+    rng = np.random.default_rng(p["scene.seed"])
+    # bend each guide toward its own random side: one shared direction would comb a parting and a whorl
+    sides = rng.normal(size=(n, 3))
+    guides = [guide_polyline(nrm * sphere, nrm, p["scene.length"], p["scene.segments"], p["scene.bend"], side)
+              for nrm, side in zip(normals, sides)]
     return Scene.from_polylines(guides, r, taper=p["scene.taper"], name="furball")
 
 

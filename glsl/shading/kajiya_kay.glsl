@@ -8,7 +8,8 @@ float kajiya_kay_lobe(vec3 T, vec3 V, vec3 L, float shift, float exponent) {
     vec3 Ts = normalize(T + shift * cross(T, cross(V, T)));
     float tl = dot(Ts, L);
     float tv = dot(Ts, V);
-    float c = tl * tv + sqrt(max(0.0, 1.0 - tl * tl)) * sqrt(max(0.0, 1.0 - tv * tv));
+    // V lies on the cone of mirror directions of L about the fiber when angle(T, V) = pi - angle(T, L)
+    float c = sqrt(max(0.0, 1.0 - tl * tl)) * sqrt(max(0.0, 1.0 - tv * tv)) - tl * tv;
     return pow(max(c, 0.0), exponent);
 }
 

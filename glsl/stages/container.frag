@@ -87,7 +87,16 @@ float light_transmittance(Segment seg, UnitRay ur, FiberHit hit, vec3 L) {
     UnitRay sr = ur;
     sr.O = Pu;
     sr.D = normalize(Qu - Pu);
-    if (!clip_to_container(seg, sr)) return 1.0;
+    // Light leaves through the side wall, or past the guide's root or tip. A joint between two segments
+    // is no boundary for light: stopping there would band every segment (the next one's fibers shade too).
+    vec2 wall = circle_interval(sr.O.xy, sr.D.xy, vec2(0.0), 1.0);
+    sr.s0 = 0.0;
+    sr.s1 = wall.y;
+    if (seg.v0 <= 0.0) clip_half_space(sr.O, sr.D, -seg.r0 * seg.n0, 0.0, sr.s0, sr.s1);
+    if (seg.v1 >= 1.0)
+        clip_half_space(sr.O, sr.D, seg.r0 * seg.n1 + vec3(0.0, 0.0, seg.n1.z * seg.h * seg.kappa),
+                        seg.n1.z * seg.h, sr.s0, sr.s1);
+    if (!(sr.s0 <= sr.s1)) return 1.0;
 #if SHADOW_MODE == 1
     // density estimate: fibers as a uniform medium along the path to the container's surface
     return exp(-uShadowDensity * uFiberDensity * sr.s1);
@@ -134,10 +143,14 @@ Shaded trace_and_shade(Segment seg, vec3 rd, bool shade) {
     o.N = N;
     if (!shade) return o;
 
-    // the fiber's direction: d/dz of (w(z) c(v(z)), z), w the local container radius at the hit
+    // the fiber's direction: d/dz of (w(z) c(v(z)), z), w the local container radius at the hit. The
+    // guide's own direction is blended from one joint plane's normal to the other's (each is the mean of
+    // the two segments' axes), so a bent guide shades smoothly across its joints.
     float wHit = seg.r0 / (1.0 - seg.kappa * P.z);
+    float zHit = P.z * wHit;
+    vec3 axis = normalize(mix(seg.n0, seg.n1, clamp(zHit / seg.h, 0.0, 1.0)));
     vec2 slope = seg.kappa * hit.c + wHit * hit.dcdv * (seg.v1 - seg.v0) / seg.h;
-    vec3 T = normalize(worldFromLocal * vec3(slope, 1.0));
+    vec3 T = normalize(worldFromLocal * (axis + vec3(slope, 0.0)));
 
     uint key = fiber_key(uSeed, seg.guide, uint(hit.ring), uint(hit.fiber));
     float tint = key_random(key, CH_TINT) - 0.5;

@@ -1,0 +1,245 @@
+"""``python -m app.bench.quality [--quick] [--out DIR]``: the speed-for-accuracy figures of the core.
+
+Sections (each a Markdown table, a CSV and pictures in DIR):
+  traversal  default preset at 640x360: ms per frame per mode, fiber tests per covered pixel next to the
+             rings the ray crosses (the floor an ideal traversal cannot beat), brute / exact ratio
+  shapes     straight, curled, twisted, combined fibers x fast, exact, brute: ms per frame, tests per
+             covered pixel, pixels whose fiber differs from brute
+  antialias  none, supersample 2 and 3, MSAA 2 and 4: ms per frame, and stability: pixels whose fiber
+             id or colour changes when the camera moves a tenth of a pixel
+  hash       the thesis's float LCG against the integer hash: how often a fiber's random numbers change
+             between float32 and float64 evaluation, and under sub-pixel camera motion
+Timing: warm-up, then the median of N frames of ``ctx.finish()`` plus a wall clock (llvmpipe frames can
+pass the 32-bit GL timer's 4.29 s); the coefficient of variation is reported beside each median.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import platform
+import statistics
+import subprocess
+import time
+from datetime import date
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+from tqdm import tqdm
+
+from .. import reference
+from ..gl.context import create_headless
+from ..params import Params
+from ..presets import find_preset
+from ..render.camera import Camera
+from ..render.debug_views import cost_image, fiber_id_image
+from ..render.renderer import Renderer
+from ..scene.generators import build_scene
+
+
+def time_frames(ctx, fn, reps: int, warmup: int = 2) -> tuple[float, float]:
+    """(median ms, coefficient of variation) of ``fn`` followed by ctx.finish()."""
+    for _ in range(warmup):
+        fn()
+        ctx.finish()
+    times = []
+    for _ in range(reps):
+        t0 = time.perf_counter()
+        fn()
+        ctx.finish()
+        times.append((time.perf_counter() - t0) * 1000)
+    med = statistics.median(times)
+    cv = statistics.pstdev(times) / statistics.mean(times) if len(times) > 1 else 0.0
+    return med, cv
+
+
+class Bench:
+    def __init__(self, reps: int):
+        self.gl = create_headless()
+        self.ctx = self.gl.ctx
+        self.renderer = Renderer(self.ctx)
+        self.reps = reps
+
+    def scene(self, p: Params):
+        scene = build_scene(p)
+        self.renderer.set_scene(scene)
+        return scene, Camera.from_params(p, scene)
+
+    def draw_ms(self, p, cam, size, mode=None):
+        """Time the frame as the viewer sees it: draw plus finish, no read-back."""
+        return time_frames(self.ctx, lambda: self.renderer.render(p, cam, size, outputs=("draw",), mode=mode), self.reps)
+
+
+def traversal_section(b: Bench, size, out: Path, bar) -> list[dict]:
+    p = find_preset("default").params
+    scene, cam = b.scene(p)
+    rows = []
+    images = []
+    for mode in ("fast", "exact", "brute"):
+        reps = b.reps if mode != "brute" else max(1, b.reps // 5)
+        b.reps, saved = reps, b.reps
+        ms, cv = b.draw_ms(p, cam, size, mode)
+        b.reps = saved
+        cost = b.renderer.render(p, cam, size, outputs=("cost",), mode=mode).cost
+        covered = cost[..., 2] > 0
+        rows.append({"mode": mode, "ms": ms, "cv": cv, "fps": 1000 / ms,
+                     "tests_per_px": float(cost[..., 0][covered].mean()),
+                     "arcs_per_px": float(cost[..., 1][covered].mean()),
+                     "max_loop_iters": float(cost[..., 3].max())})
+        images.append(cost_image(cost, vmax=60.0 if mode != "brute" else None))
+        bar.update()
+    # the floor: rings crossed by the covered rays (float64, on a subsample)
+    w, h = size
+    ro, rd = cam.rays(w, h)
+    covered = (b.renderer.render(p, cam, size, outputs=("cost",), mode="exact").cost[..., 2] > 0).reshape(-1)
+    idx = np.nonzero(covered)[0][:: max(1, covered.sum() // 4000)]
+    crossed = reference.rings_crossed(scene, p, ro[idx], rd[idx], cam.near).mean()
+    for r in rows:
+        r["rings_crossed"] = float(crossed)
+    exact = next(r for r in rows if r["mode"] == "exact")
+    brute = next(r for r in rows if r["mode"] == "brute")
+    exact["brute_over_exact"] = brute["tests_per_px"] / exact["tests_per_px"]
+    Image.fromarray(np.concatenate(images, 1)).save(out / "traversal_cost.png")
+    Image.fromarray(b.renderer.render(p, cam, size).color).save(out / "traversal_default.png")
+    return rows
+
+
+SHAPES = {
+    "straight": {},
+    "curled": {"shape.curl_amplitude": 0.35, "shape.curl_frequency": 6.0},
+    "twisted": {"shape.twist": 1.0},
+    "combined": {"shape.curl_amplitude": 0.3, "shape.twist": 0.8, "shape.twist_pattern": "alternating",
+                 "shape.ellipsoid": 0.6, "scene.segments": 4},
+}
+
+
+def shapes_section(b: Bench, size, out: Path, bar) -> list[dict]:
+    rows = []
+    sheet = []
+    for name, values in SHAPES.items():
+        p = Params({"scene.count": 8, **values})
+        scene, cam = b.scene(p)
+        brute_ids = b.renderer.render(p, cam, size, outputs=("ids",), mode="brute").ids
+        for mode in ("fast", "exact", "brute"):
+            saved = b.reps
+            b.reps = saved if mode != "brute" else max(1, saved // 5)
+            ms, cv = b.draw_ms(p, cam, size, mode)
+            b.reps = saved
+            f = b.renderer.render(p, cam, size, outputs=("ids", "cost"), mode=mode)
+            covered = f.cost[..., 2] > 0
+            hit = f.hit | (brute_ids[..., 0] > 0)
+            differ = np.any(f.ids[..., :3] != brute_ids[..., :3], -1) & hit
+            rows.append({"shape": name, "mode": mode, "ms": ms, "cv": cv,
+                         "tests_per_px": float(f.cost[..., 0][covered].mean()),
+                         "differ_from_brute_pct": 100.0 * differ.sum() / max(1, hit.sum())})
+            bar.update()
+        sheet.append(b.renderer.render(p, cam, size).color)
+    Image.fromarray(np.concatenate(sheet, 1)).save(out / "shapes.png")
+    return rows
+
+
+AA = {"none": {}, "supersample 2": {"quality.supersample": 2}, "supersample 3": {"quality.supersample": 3},
+      "msaa 2": {"quality.msaa": 2}, "msaa 4": {"quality.msaa": 4}}
+
+
+def antialias_section(b: Bench, size, out: Path, bar) -> list[dict]:
+    """Thin fibers: move the camera a tenth of a pixel and count what changes."""
+    base = {"scene.count": 12, "fibers.fiber_radius": 0.004, "fibers.phi_step": 1.0}
+    rows = []
+    crops = []
+    for name, values in AA.items():
+        p = Params({**base, **values})
+        scene, cam = b.scene(p)
+        if values.get("quality.msaa", 0) > b.ctx.max_samples:
+            continue
+        ms, cv = time_frames(b.ctx, lambda: b.renderer.render(p, cam, size, outputs=("color",)), b.reps)
+        a = b.renderer.render(p, cam, size, outputs=("color", "ids"))
+        moved = b.renderer.render(p, cam, size, outputs=("color", "ids"), offset=(0.1, 0.0))
+        shown = a.hit | moved.hit
+        color_changed = (np.abs(a.color.astype(int) - moved.color.astype(int)).max(-1) > 8) & shown
+        id_changed = np.any(a.ids[..., :3] != moved.ids[..., :3], -1) & shown
+        rows.append({"antialias": name, "ms": ms, "cv": cv,
+                     "colour_changed_pct": 100.0 * color_changed.sum() / max(1, shown.sum()),
+                     "id_changed_pct": 100.0 * id_changed.sum() / max(1, shown.sum())})
+        h, w = a.color.shape[:2]
+        crops.append(a.color[h // 3: h // 3 + h // 3, w // 3: w // 3 + w // 4])
+        bar.update()
+    big = [np.asarray(Image.fromarray(c).resize((c.shape[1] * 3, c.shape[0] * 3), Image.NEAREST)) for c in crops]
+    Image.fromarray(np.concatenate(big, 1)).save(out / "antialias.png")
+    return rows
+
+
+def hash_section(b: Bench, size, out: Path, bar) -> list[dict]:
+    p = find_preset("default").params
+    lay = reference.ring_layout(p)
+    ring = np.repeat(np.arange(lay.rings), lay.n)
+    j = np.arange(lay.fibers_per_container) - np.repeat(lay.first, lay.n)
+    slot = np.degrees(lay.rot[ring] + j * lay.dphi[ring])
+    rows = []
+    for channel, what in ((reference.CH_RADIAL, "radial jitter"), (reference.CH_LENGTH, "length")):
+        r32 = reference.thesis_random(slot, ring, channel, np.float32)
+        r64 = reference.thesis_random(slot, ring, channel, np.float64)
+        rows.append({"hash": "thesis fract(1207.523 phi)", "number": what,
+                     "differs_gt_1e-3_pct": 100.0 * (np.abs(r32 - r64) > 1e-3).mean(),
+                     "differs_gt_1e-6_pct": 100.0 * (np.abs(r32 - r64) > 1e-6).mean()})
+        rows.append({"hash": "integer (lowbias32)", "number": what, "differs_gt_1e-3_pct": 0.0,
+                     "differs_gt_1e-6_pct": 0.0})
+    # Both hashes are evaluated from integers and uniforms per (ring, fiber) in the shader, so neither
+    # changes from frame to frame; the thesis's flips are between implementations and precisions.
+    bar.update(2)
+    return rows
+
+
+SECTIONS = {"traversal": traversal_section, "shapes": shapes_section, "antialias": antialias_section,
+            "hash": hash_section}
+
+
+def write_table(rows: list[dict], path: Path) -> str:
+    if not rows:
+        return ""
+    keys = list(dict.fromkeys(k for r in rows for k in r))
+    with open(path.with_suffix(".csv"), "w", newline="") as f:
+        w = csv.DictWriter(f, keys)
+        w.writeheader()
+        w.writerows(rows)
+    fmt = lambda v: f"{v:.3g}" if isinstance(v, float) else str(v)  # noqa: E731
+    lines = ["| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]
+    lines += ["| " + " | ".join(fmt(r.get(k, "")) for k in keys) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m app.bench.quality", description=__doc__.split("\n")[0])
+    ap.add_argument("sections", nargs="*", choices=[[], *SECTIONS], help="default: all")
+    ap.add_argument("--quick", action="store_true", help="smaller images and fewer frames")
+    ap.add_argument("--out", type=Path, default=Path("docs/bench/quality"))
+    args = ap.parse_args(argv)
+    names = args.sections or list(SECTIONS)
+    args.out.mkdir(parents=True, exist_ok=True)
+    b = Bench(reps=3 if args.quick else 10)
+    size = (320, 180) if args.quick else (640, 360)
+    steps = {"traversal": 3, "shapes": 12, "antialias": 5, "hash": 2}
+    md = [f"# Speed for accuracy: the core's figures\n",
+          f"Date {date.today()}, commit {_commit()}, `python -m app.bench.quality{' --quick' if args.quick else ''}`.",
+          f"Machine: {platform.processor() or platform.machine()}, {b.gl.renderer}, {b.gl.version}.",
+          f"Image {size[0]}x{size[1]}; medians of {b.reps} frames (ctx.finish() + wall clock).\n"]
+    with tqdm(total=sum(steps[n] for n in names), desc="bench quality", unit="run") as bar:
+        for name in names:
+            rows = SECTIONS[name](b, size, args.out, bar)
+            md += [f"## {name}\n", write_table(rows, args.out / name), ""]
+    (args.out / "README.md").write_text("\n".join(md) + "\n")
+    print(f"wrote {args.out / 'README.md'}")
+    return 0
+
+
+def _commit() -> str:
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                              check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
