@@ -7,6 +7,7 @@ Sections (each a Markdown table, a CSV and pictures in DIR):
              covered pixel, pixels whose fiber differs from brute
   antialias  none, supersample 2 and 3, MSAA 2 and 4: ms per frame, and stability: pixels whose fiber
              id or colour changes when the camera moves a tenth of a pixel
+  shadows    self-shadowing off, density estimate, traced shadow ray: cost and difference
   hash       the thesis's float LCG against the integer hash: how often a fiber's random numbers change
              between float32 and float64 evaluation, and under sub-pixel camera motion
 Timing: warm-up, then the median of N frames of ``ctx.finish()`` plus a wall clock (llvmpipe frames can
@@ -191,8 +192,32 @@ def hash_section(b: Bench, size, out: Path, bar) -> list[dict]:
     return rows
 
 
+def shadows_section(b: Bench, size, out: Path, bar) -> list[dict]:
+    """Self-shadowing: what the density estimate and the traced shadow ray cost, and how far apart
+    their pictures are (mean absolute difference of the shaded fibers, 8-bit)."""
+    p0 = find_preset("default").params
+    rows, images = [], {}
+    for mode in ("off", "density", "traced"):
+        p = p0.replace(**{"look.self_shadow": mode})
+        scene, cam = b.scene(p)
+        ms, cv = b.draw_ms(p, cam, size)
+        f = b.renderer.render(p, cam, size, outputs=("color", "cost", "ids"))
+        covered = f.cost[..., 2] > 0
+        images[mode] = f
+        rows.append({"self_shadow": mode, "ms": ms, "cv": cv,
+                     "tests_per_px": float(f.cost[..., 0][covered].mean())})
+        bar.update()
+    hit = images["traced"].hit
+    for r in rows:
+        diff = np.abs(images[r["self_shadow"]].color.astype(int) - images["traced"].color.astype(int))
+        r["mean_abs_diff_to_traced"] = float(diff[hit].mean())
+    Image.fromarray(np.concatenate([images[m].color for m in ("off", "density", "traced")], 1)).save(
+        out / "shadows.png")
+    return rows
+
+
 SECTIONS = {"traversal": traversal_section, "shapes": shapes_section, "antialias": antialias_section,
-            "hash": hash_section}
+            "shadows": shadows_section, "hash": hash_section}
 
 
 def write_table(rows: list[dict], path: Path) -> str:
@@ -219,7 +244,7 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     b = Bench(reps=3 if args.quick else 10)
     size = (320, 180) if args.quick else (640, 360)
-    steps = {"traversal": 3, "shapes": 12, "antialias": 5, "hash": 2}
+    steps = {"traversal": 3, "shapes": 12, "antialias": 5, "shadows": 3, "hash": 2}
     md = [f"# Speed for accuracy: the core's figures\n",
           f"Date {date.today()}, commit {_commit()}, `python -m app.bench.quality{' --quick' if args.quick else ''}`.",
           f"Machine: {platform.processor() or platform.machine()}, {b.gl.renderer}, {b.gl.version}.",
