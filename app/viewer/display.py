@@ -101,6 +101,7 @@ class ViewportRenderer:
         self._proxy_vao: dict[int, moderngl.VertexArray] = {}
         self._ids_from: str = "direct"
         self._draw_output: bool | None = None        # does Renderer.render know outputs=("draw",)?
+        self._latest: moderngl.Texture | None = None  # the texture holding the newest sample
         self._query = None
         try:
             self._query = ctx.query(time=True)
@@ -108,14 +109,16 @@ class ViewportRenderer:
             self._query = None
 
     # --- programs ----------------------------------------------------------------------------------
-    def _prog(self, frag: str, vert: str = "viewer/fullscreen.vert") -> moderngl.Program:
-        return self.programs.get(self.ctx, vert, frag)
+    def _prog(self, frag: str, vert: str = "viewer/fullscreen.vert", defines=None) -> moderngl.Program:
+        return self.programs.get(self.ctx, vert, frag, defines)
 
     def compile_all(self, programs: ProgramCache | None = None) -> None:
         """Compile every viewer program now (hot reload tries a fresh cache with this before swapping)."""
         cache = programs or self.programs
-        for frag in ("viewer/clear.frag", "viewer/accumulate.frag", "viewer/display.frag"):
+        for frag in ("viewer/clear.frag", "viewer/accumulate.frag"):
             cache.get(self.ctx, "viewer/fullscreen.vert", frag)
+        for code in VIEW_CODE.values():
+            cache.get(self.ctx, "viewer/fullscreen.vert", "viewer/display.frag", {"VIEW": code})
         cache.get(self.ctx, "viewer/proxy.vert", "viewer/proxy.frag")
 
     def _fullscreen(self, prog: moderngl.Program) -> None:
@@ -137,6 +140,7 @@ class ViewportRenderer:
 
     def invalidate(self) -> None:
         self.samples = 0
+        self._latest = None
         self.has_ids = False
         self.has_cost = False
 
@@ -169,6 +173,7 @@ class ViewportRenderer:
         ctx = self.ctx
         ctx.finish()
         t0 = time.perf_counter()
+        self._before_sample()
         gpu_ns = None
         if path == "direct":
             try:
@@ -189,7 +194,7 @@ class ViewportRenderer:
                 color_tex = self._upload_frame(frame)
             gpu_ns = q.ns
             self._ids_from = "readback"
-        self._accumulate(color_tex)
+        self._after_sample(color_tex)
         ctx.finish()
         wall = time.perf_counter() - t0
         self.has_ids = with_ids or path == "direct"
@@ -281,11 +286,10 @@ class ViewportRenderer:
         return color
 
     def _accumulate(self, color: moderngl.Texture) -> None:
+        """Add ``color`` to the float accumulation target (additive blending, one fullscreen pass)."""
         ctx = self.ctx
         if self._accum is None:
             self._accum = ctx.framebuffer([ctx.texture(self.size, 4, dtype="f4")])
-        if self.samples == 0:
-            self._accum.clear(0.0, 0.0, 0.0, 0.0)
         self._accum.use()
         ctx.viewport = (0, 0) + self.size
         ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
@@ -297,7 +301,25 @@ class ViewportRenderer:
         prog["uColor"].value = 0
         self._fullscreen(prog)
         ctx.disable(moderngl.BLEND)
+
+    def _before_sample(self) -> None:
+        """A second sample is about to overwrite the first in the renderer's target: bank the first.
+        (A single sample is displayed straight from that target; only supersampling pays for the sum.)"""
+        if self.samples == 1 and self._latest is not None:
+            if self._accum is not None:
+                self._accum.clear(0.0, 0.0, 0.0, 0.0)
+            self._accumulate(self._latest)
+
+    def _after_sample(self, color: moderngl.Texture) -> None:
         self.samples += 1
+        self._latest = color
+        if self.samples > 1:
+            self._accumulate(color)
+
+    def _shown_color(self) -> moderngl.Texture | None:
+        if self.samples == 1:
+            return self._latest
+        return self._accum.color_attachments[0] if self._accum is not None else None
 
     # --- cost --------------------------------------------------------------------------------------
     def render_cost(self, p: Params, cam: Camera, mode: str, size: tuple[int, int],
@@ -330,15 +352,19 @@ class ViewportRenderer:
         ctx.scissor = rect
         ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
         code = VIEW_CODE[view]
-        ready = self.has_cost if view == "heat map" else (self._accum is not None and self.samples > 0)
+        ready = self.has_cost if view == "heat map" else self.samples > 0
         if not ready:
             bg = np.asarray(p["look.background"]) ** (1 / 2.2)
             target.clear(*bg, 1.0, viewport=rect)
             ctx.scissor = None
             return
-        prog = self._prog("viewer/display.frag")
+        prog = self._prog("viewer/display.frag", defines={"VIEW": code})
         dummy = self._dummies()
-        (self._accum.color_attachments[0] if self._accum is not None else dummy["f4"]).use(0)
+        shown = self._shown_color() or dummy["f4"]
+        # 1:1 (the final frame at render_scale 1): nearest is exact and cheaper than bilinear on llvmpipe
+        one_to_one = tuple(self.size) == (rect[2], rect[3])
+        shown.filter = (moderngl.NEAREST, moderngl.NEAREST) if one_to_one else (moderngl.LINEAR, moderngl.LINEAR)
+        shown.use(0)
         if self._ids_from == "direct" and self.direct_ok and self.samples > 0:
             fbo = self.renderer._target(self.size, cost=False)
             ids, geom = fbo.color_attachments[1], fbo.color_attachments[2]
@@ -349,8 +375,9 @@ class ViewportRenderer:
         ids.use(1)
         geom.use(2)
         (self._cost_tex if self._cost_tex is not None else dummy["f4"]).use(3)
-        values = {"uView": code, "uAccum": 0, "uIds": 1, "uGeom": 2, "uCost": 3,
-                  "uSamples": float(max(self.samples, 1)), "uBackground": tuple(p["look.background"]),
+        bg = tuple(float(x) for x in np.round(np.clip(p["look.background"], 0, 1) ** (1 / 2.2) * 255) / 255)
+        values = {"uAccum": 0, "uIds": 1, "uGeom": 2, "uCost": 3,
+                  "uSamples": float(max(self.samples, 1)), "uBackgroundSrgb": bg,
                   "uRings": int(p["fibers.rings"]), "uHeatMax": float(heat_max), "uDim": 0.4,
                   "uDepthRange": self.depth_range(cam, scene)}
         for name, value in values.items():

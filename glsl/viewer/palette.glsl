@@ -1,7 +1,6 @@
 // palette.glsl: colours for the viewer's debug views.
 //   vec3 id_color(uvec3 id)        a stable, well-spread colour per (guide + 1, ring, fiber)
 //   vec3 heat_color(float x)       x in [0, 1] -> 9-stop viridis, linearly interpolated
-//   vec3 background_srgb(vec3 c)   linear background -> the 8-bit-ish display value the renderer uses
 // Twin: app/viewer/display.py (HEAT_STOPS, heat_color) draws the legend from the same stops.
 
 uint palette_hash(uint x) {           // Chris Wellons' lowbias32
@@ -35,8 +34,4 @@ vec3 heat_color(float x) {
     float s = clamp(x, 0.0, 1.0) * 8.0;
     int i = min(int(s), 7);
     return mix(HEAT_STOPS[i], HEAT_STOPS[i + 1], s - float(i));
-}
-
-vec3 background_srgb(vec3 c) {
-    return pow(clamp(c, 0.0, 1.0), vec3(1.0 / 2.2));
 }
