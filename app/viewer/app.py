@@ -114,7 +114,12 @@ class Viewer:
         io = imgui.get_io()
         io.set_ini_filename("")                     # no imgui.ini beside the artist's files
         imgui.style_colors_dark()
-        scale = max(glfw.get_window_content_scale(self.window))  # HiDPI: 2.0 on a retina screen
+        # HiDPI: the monitor's content scale, less what the framebuffer already scales (macOS windows are
+        # sized in points with a 2x framebuffer; Windows and X11 windows are sized in pixels)
+        content = max(glfw.get_window_content_scale(self.window))
+        fb_w, _ = glfw.get_framebuffer_size(self.window)
+        win_w, _ = glfw.get_window_size(self.window)
+        scale = content / max(fb_w / max(win_w, 1), 1.0)
         style = imgui.get_style()
         style.window_rounding = 4.0
         if scale > 1.0:

@@ -110,9 +110,8 @@ def gui(state: AppState) -> Layout:
 
 def state_scratch(state: AppState) -> dict[str, Any]:
     """Text typed into dialogs and fields before it is applied (plain values kept on the state)."""
-    if not hasattr(state, "_gui_scratch"):
-        object.__setattr__(state, "_gui_scratch", {"open_popup": None})
-    return state._gui_scratch  # type: ignore[attr-defined]
+    state.scratch.setdefault("open_popup", None)
+    return state.scratch
 
 
 def _ui_scale() -> float:

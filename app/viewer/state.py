@@ -129,6 +129,7 @@ class AppState:
     last_edit: float | None = None       # perf_counter of the last parameter edit not yet on screen
     dragging: bool = False               # a slider (or a camera drag) is held this frame
     commands: list[tuple[str, dict[str, Any]]] = field(default_factory=list)  # for the app: screenshot...
+    scratch: dict[str, Any] = field(default_factory=dict)   # the gui's typed-but-unapplied text, dialogs
 
     _undo: list[Params] = field(default_factory=list)
     _redo: list[Params] = field(default_factory=list)
