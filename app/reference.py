@@ -113,7 +113,11 @@ def ring_layout(p: Params) -> RingLayout:
     rf = p["fibers.fiber_radius"]
     max_dr = np.full(K, max(0.0, half_width - rf) * p["fibers.radial_jitter"])
     rho_min = rho - max_dr
-    disc_half_angle = np.arcsin(np.minimum(1.0, rf / rho_min))
+    # half the angle a fiber's disc covers seen from the axis; a disc that reaches the axis covers half the
+    # turn. rho_min is 0 on the innermost ring at full radial jitter: rf / 0 would be nan for rf = 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(rho_min > rf, rf / rho_min, 1.0) if rf > 0 else np.zeros(K)
+    disc_half_angle = np.arcsin(ratio)
     max_dphi = np.maximum(0.0, 0.5 * dphi - disc_half_angle) * p["fibers.angular_jitter"]
     return RingLayout(K, rho, n, dphi, rot, max_dr, max_dphi, max_dphi + disc_half_angle, rf,
                       p["fibers.length_jitter"], thesis, seed)

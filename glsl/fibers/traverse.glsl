@@ -259,6 +259,8 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
 #endif
 
 FiberHit traverse(Segment seg, UnitRay ur) {
+    // radius 0 is no fiber at all (a ray through a centre would otherwise touch it), as in the reference
+    if (!(uFiberRadius > 0.0)) return no_hit();
 #if SHAPED
     return traverse_shaped(seg, ur);
 #endif
