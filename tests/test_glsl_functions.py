@@ -36,6 +36,9 @@ def values(ctx):
     ctx.vertex_array(prog, []).render(vertices=3)
     h = np.frombuffer(hashes.read(), np.uint32).reshape(H, W, 4)
     v = np.frombuffer(vals.read(), np.float32).reshape(H, W, 4)
+    # bind a live framebuffer before releasing ours: moderngl rebinds the current one whenever it creates
+    # a framebuffer, and rebinding a released one leaves GL_INVALID_OPERATION for the next test
+    ctx.framebuffer(ctx.renderbuffer((1, 1))).use()
     fbo.release()
     hashes.release()
     vals.release()
