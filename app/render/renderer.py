@@ -30,11 +30,14 @@ from ..scene.containers import SEGMENT_BYTES, Scene
 from .camera import Camera
 
 MAX_RINGS = 64
-LOOP_CAP = 65_535                 # llvmpipe ends a shader's loops silently after this many iterations
+# llvmpipe ends all of an invocation's loops silently once it has made this many passes through loop
+# headers in all; a loop's final, failing test is a pass too, so a loop of n iterations costs n + 1
+LOOP_CAP = 65_535
 BRUTE_CHUNK = 60_000              # fibers per brute-force draw: stays under LOOP_CAP with 64 rings
 MAX_SUB = 16                      # chord pieces per curved-fiber test (glsl/fibers/curved.glsl)
-# curved fibers are tested once per arc (at most 2 per ring) at up to MAX_SUB + 1 loop iterations each
-BRUTE_CHUNK_SHAPED = (LOOP_CAP - 4 * MAX_RINGS) // (2 * (MAX_SUB + 1))
+# curved fibers are tested once per arc (at most 2 per ring), each test one pass of the candidate loop
+# plus up to MAX_SUB + 1 of its chord loop; 16 passes per ring pay for the ring, arc and canary loops
+BRUTE_CHUNK_SHAPED = (LOOP_CAP - 16 * MAX_RINGS) // (2 * (MAX_SUB + 2))
 TWIST_PATTERNS = {"uniform": 0, "ramped": 1, "alternating": 2}
 CURL_PATTERNS = {"helix": 0, "wave": 1}
 SHADING_MODELS = {"kajiya_kay": 0, "marschner": 1}

@@ -1,5 +1,5 @@
 // traverse.glsl: find the fiber a ray hits inside one container segment (thesis chapter III, Appendix A).
-//   FiberHit traverse(Segment seg, UnitRay ur)
+//   FiberHit traverse(Segment seg, UnitRay ur)     then reports a loop budget run out (loop_canary)
 // TRAVERSAL selects the mode:
 //   0 fast   the thesis's order, first hit wins: front arcs outer to inner, then the back arcs inner to
 //            outer from a fixed-size stack (3.11); within an arc, fibers in the order the ray meets them
@@ -258,7 +258,7 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
 }
 #endif
 
-FiberHit traverse(Segment seg, UnitRay ur) {
+FiberHit traverse_fibers(Segment seg, UnitRay ur) {
     // radius 0 is no fiber at all (a ray through a centre would otherwise touch it), as in the reference
     if (!(uFiberRadius > 0.0)) return no_hit();
 #if SHAPED
@@ -302,4 +302,23 @@ FiberHit traverse(Segment seg, UnitRay ur) {
         if (visit_piece(seg, ur, i, backStack[i].x, backStack[i].y, best)) return best;
     }
     return best;
+}
+
+// llvmpipe ends every loop of an invocation silently once the invocation has run 65,535 loop iterations
+// in all (each pass through a loop header counts, a loop's final test included). The renderer splits the
+// fibers over draws so that should never happen (renderer.py: draw_ranges); should it happen anyway, a
+// loop of a length the compiler cannot know, run after the traversal, is cut short, and gIters is raised
+// to LOOP_CAP so that the iters and cost outputs say so instead of a fiber going missing in silence.
+const int LOOP_CAP = 65535;
+
+void loop_canary() {
+    int trips = 0;
+    for (int k = 0; k <= uRings; k++) trips++;
+    if (trips <= uRings) gIters = max(gIters, LOOP_CAP);
+}
+
+FiberHit traverse(Segment seg, UnitRay ur) {
+    FiberHit hit = traverse_fibers(seg, ur);
+    loop_canary();
+    return hit;
 }

@@ -1,0 +1,96 @@
+"""llvmpipe's loop budget: an invocation that passes 65,535 loop-header passes has every loop cut short in
+silence. These tests pin how the driver counts, that the traversal reports a budget run out (the canary in
+glsl/fibers/traverse.glsl), and that the renderer's draws never run it out."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import app.render.renderer as renderer_module
+from app.params import Params
+from app.render.camera import Camera
+from app.render.renderer import LOOP_CAP
+from app.scene.containers import Scene
+
+VERT = "#version 450 core\nin vec2 p;\nvoid main() { gl_Position = vec4(p, 0.0, 1.0); }\n"
+FRAG = """#version 450 core
+uniform int N;
+uniform int M;
+out vec4 o;
+void main() {
+    int inner = 0, outer = 0;
+    for (int i = 0; i < N; i++) { outer++; for (int j = 0; j < M; j++) inner++; }
+    int canary = 0;
+    for (int k = 0; k < 5 + N % 2; k++) canary++;
+    o = vec4(float(inner), float(outer), float(canary), 1.0);
+}
+"""
+
+
+@pytest.fixture()
+def loops(ctx, gl):
+    if "llvmpipe" not in gl.renderer:
+        pytest.skip(f"the loop budget is llvmpipe's; this is {gl.renderer}")
+    import moderngl
+
+    prog = ctx.program(vertex_shader=VERT, fragment_shader=FRAG)
+    vbo = ctx.buffer(np.array([-1, -1, 3, -1, -1, 3], np.float32).tobytes())
+    vao = ctx.vertex_array(prog, [(vbo, "2f", "p")])
+    tex = ctx.texture((1, 1), 4, dtype="f4")
+    fbo = ctx.framebuffer([tex])
+
+    def run(n, m):
+        fbo.use()
+        ctx.viewport = (0, 0, 1, 1)
+        ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
+        prog["N"].value, prog["M"].value = n, m
+        vao.render()
+        return np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32)[:3]
+
+    yield run
+    # the 1x1 target stays: moderngl rebinds the previous framebuffer after making one, and rebinding a
+    # released one is an invalid operation
+    for o in (vao, vbo, prog):
+        o.release()
+
+
+def test_llvmpipe_counts_every_pass_through_a_loop_header(loops):
+    """An empty inner loop still costs one pass (its failing test): 65,536 passes buy 32,768 outer
+    iterations. The renderer's chunk sizes rest on this rule."""
+    inner, outer, canary = loops(70_000, 0)
+    assert outer == 32_768 and canary < 5
+    inner, outer, canary = loops(5_000, 16)
+    assert inner + 2 * outer == pytest.approx(65_536, abs=8)   # 16 + 1 passes inside, 1 outside
+    inner, outer, canary = loops(1_001, 16)
+    assert (inner, outer, canary) == (16_016, 1_001, 6), "under the budget every loop runs to the end"
+
+
+SCENE = Scene.from_polylines([np.array([[0, 0, 0], [0, 0, 2.0]])], 1.0)
+CAM = Camera([4.0, 1.0, 1.3], [0, 0, 1.0], 35, 0.5, 20)
+# thin curled fibers met at a slant: nearly every test runs the whole chord loop and finds nothing
+CURLED = {"fibers.rings": 1, "fibers.phi_step": 0.1, "fibers.fiber_radius": 0.02, "fibers.length_jitter": 0.0,
+          "shape.curl_amplitude": 0.5, "shape.curl_frequency": 64.0}
+
+
+def test_brute_curved_draws_stay_within_the_loop_budget(renderer, monkeypatch):
+    """Regression: BRUTE_CHUNK_SHAPED counted MAX_SUB + 1 passes per curved test, but the candidate loop and
+    the chord loop's final test make it MAX_SUB + 2, so a 1,919-fiber draw could need 69,000 passes and
+    lost fibers (144 of 256 pixels cut short here, one pixel's fiber wrong)."""
+    p = Params(CURLED)
+    renderer.set_scene(SCENE)
+    whole = renderer.render(p, CAM, (16, 16), outputs=("ids", "iters"), mode="brute")
+    assert 0 < whole.iters.max() < LOOP_CAP, "a brute draw ran out of loop budget"
+    monkeypatch.setattr(renderer_module, "BRUTE_CHUNK_SHAPED", renderer_module.BRUTE_CHUNK_SHAPED // 3)
+    finer = renderer.render(p, CAM, (16, 16), outputs=("ids",), mode="brute")
+    assert finer.draws > whole.draws
+    assert (whole.ids[..., :3] == finer.ids[..., :3]).all()
+
+
+def test_a_budget_run_out_is_reported(renderer, monkeypatch):
+    """The canary: with the chunks made far too big, the iters output shows LOOP_CAP instead of the loss
+    passing unnoticed."""
+    monkeypatch.setattr(renderer_module, "BRUTE_CHUNK_SHAPED", 3600)
+    renderer.set_scene(SCENE)
+    frame = renderer.render(Params(CURLED), CAM, (16, 16), outputs=("iters",), mode="brute")
+    assert frame.iters.max() >= LOOP_CAP
