@@ -224,6 +224,37 @@ def test_direct_and_readback_frame_paths_show_the_same_image(ctx, renderer):
         vp.release()
 
 
+def test_debug_views_show_the_command_lines_colours(ctx, renderer):
+    """The viewer draws its debug views on the GPU; app/render/debug_views.py draws the CLI's from numpy.
+    Pixel for pixel they must agree wherever there is a fiber (the viewer shows the background elsewhere)."""
+    from app.render import debug_views as dv
+    from app.viewer.display import ViewportRenderer
+
+    p = Params({"fibers.rings": 6})
+    scene = _scene()
+    size = (192, 120)
+    cam = make_camera(p, scene, size[0] / size[1])
+    renderer.set_scene(scene)
+    frame = renderer.render(p, cam, size, outputs=("ids", "geom", "cost"), antialias=False)
+    hit, covered = frame.ids[..., 0] > 0, frame.cost[..., 2] > 0
+    vmax = float(np.percentile(frame.cost[..., 0][covered], 99))
+    vp = ViewportRenderer(ctx, renderer, renderer.programs)
+    vp.set_scene(scene)
+    vp.resize(size)
+    try:
+        vp.render_sample(p, cam, "exact", (0.0, 0.0), "direct", with_ids=True)
+        vp.render_cost(p, cam, "exact", size, upload=True)
+        for view, want, mask in (("fiber ids", dv.fiber_id_image(frame.ids), hit),
+                                 ("rings", dv.ring_image(frame.ids, 6), hit),
+                                 ("normals", dv.normal_image(frame.geom), hit),
+                                 ("heat map", dv.cost_image(frame.cost, vmax, legend=False), covered)):
+            got = vp.display_offscreen(size, view, p, cam, scene, vmax).astype(int)
+            assert mask.mean() > 0.05
+            assert np.abs(got[mask] - want.astype(int)[mask]).max() <= 1, view
+    finally:
+        vp.release()
+
+
 # --------------------------------------------------------------------------------------------------
 # script format
 

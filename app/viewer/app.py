@@ -619,6 +619,7 @@ class Viewer:
             self.vp.resize(keep)
             self._shown_key = None
         if size != self.vp.size:
+            self.vp.park()
             self.renderer.release_targets()    # a 4K screenshot's targets are ~150 MB: do not keep them
         self._shown_key = None                 # the view draws from the renderer's targets: redraw it
         Path(path).parent.mkdir(parents=True, exist_ok=True)
@@ -661,6 +662,7 @@ class Viewer:
             self.ctx.copy_framebuffer(fbo, self.ctx.screen)  # the whole window, then crop to the render
             raw = fbo.read(viewport=rect, components=3, alignment=1)
         finally:
+            self.ctx.screen.use()     # never leave moderngl pointing at a released framebuffer
             fbo.release()
             tex.release()
         img = np.frombuffer(raw, np.uint8).reshape(h, w, 3)[::-1]

@@ -36,18 +36,10 @@ PROXY_SIDES = 16                                   # must match N_SIDES in glsl/
 PROXY_VERTICES = 4 * PROXY_SIDES + 8
 TIMER_WRAP_S = 4.0                                 # a 32-bit nanosecond timer query wraps at 4.29 s
 
-# Twin of HEAT_STOPS in glsl/viewer/palette.glsl (the legend is drawn from these).
-HEAT_STOPS = np.array([
-    (0.267, 0.005, 0.329), (0.283, 0.141, 0.458), (0.254, 0.265, 0.530),
-    (0.207, 0.372, 0.553), (0.164, 0.471, 0.558), (0.128, 0.567, 0.551),
-    (0.135, 0.659, 0.518), (0.478, 0.821, 0.318), (0.993, 0.906, 0.144)])
-
-
-def heat_color(x: np.ndarray | float) -> np.ndarray:
-    s = np.clip(np.asarray(x, np.float64), 0.0, 1.0) * 8.0
-    i = np.minimum(s.astype(int), 7)
-    f = (s - i)[..., None]
-    return HEAT_STOPS[i] * (1 - f) + HEAT_STOPS[i + 1] * f
+# The heat ramp of app/render/debug_views.py (the CLI's pictures); glsl/viewer/palette.glsl holds the
+# same six stops and a test holds the viewer's debug views against debug_views pixel by pixel.
+HEAT_STOPS = np.array([[0.05, 0.03, 0.25], [0.1, 0.3, 0.6], [0.1, 0.6, 0.6], [0.5, 0.8, 0.3],
+                       [0.98, 0.85, 0.2], [0.9, 0.2, 0.1]])
 
 
 def supersample_offsets(n: int) -> list[tuple[float, float]]:
@@ -102,6 +94,7 @@ class ViewportRenderer:
         self._ids_from: str = "direct"
         self._draw_output: bool | None = None        # does Renderer.render know outputs=("draw",)?
         self._latest: moderngl.Texture | None = None  # the texture holding the newest sample
+        self._parking: moderngl.Framebuffer | None = None
         self._query = None
         try:
             self._query = ctx.query(time=True)
@@ -144,10 +137,19 @@ class ViewportRenderer:
         self.has_ids = False
         self.has_cost = False
 
+    def park(self) -> None:
+        """Bind a framebuffer that is never released. moderngl keeps the name of the last framebuffer
+        used and binds it back when it creates the next one; if that one was released in between, GL
+        answers GL_INVALID_OPERATION. So park before releasing anything that may be bound."""
+        if self._parking is None:
+            self._parking = self.ctx.framebuffer([self.ctx.texture((1, 1), 4)])
+        self._parking.use()
+
     def resize(self, size: tuple[int, int]) -> None:
         """A new render size: drop the renderer's targets of other sizes (they are 37 MB at 720p)."""
         if size == self.size:
             return
+        self.park()
         self.renderer.release_targets()
         if self._accum is not None:
             self._accum.color_attachments[0].release()
@@ -426,6 +428,7 @@ class ViewportRenderer:
             self.display(fbo, (0, 0) + tuple(size), view, p, cam, scene, heat_max)
             raw = fbo.read(components=3, alignment=1)
         finally:
+            self.park()
             fbo.release()
             tex.release()
         return np.frombuffer(raw, np.uint8).reshape(size[1], size[0], 3)[::-1].copy()
@@ -434,6 +437,11 @@ class ViewportRenderer:
         self.resize((0, 0))
         if self._proxy_buf is not None:
             self._proxy_buf.release()
+            self._proxy_buf = None
+        for vao in list(self._proxy_vao.values()) + list(self._empty_vao.values()):
+            vao.release()
+        self._proxy_vao.clear()
+        self._empty_vao.clear()
 
 
 def render_still(renderer: Renderer, p: Params, cam: Camera, size: tuple[int, int]) -> np.ndarray:

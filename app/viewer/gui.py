@@ -543,10 +543,10 @@ def _legends(state: AppState, layout: Layout) -> None:
         _legend(layout, "fiber tests per pixel" + auto, HEAT_STOPS, ("0", f"{top / 2:.0f}", f"{top:.0f}+"))
     elif view == "rings":
         k = state.params["fibers.rings"]
-        _legend(layout, "ring index", HEAT_STOPS[::-1], ("outer 0", "", f"inner {k - 1}"))
+        _legend(layout, "ring index", HEAT_STOPS, ("outer 0", "", f"inner {k - 1}"))
     elif view == "depth":
         near, far = s.depth_range
-        _legend(layout, "distance along the ray", ((1.0, 1.0, 1.0), (0.0, 0.0, 0.0)),
+        _legend(layout, "distance along the ray", ((1.0, 1.0, 1.0), (0.15, 0.15, 0.15)),
                 (f"{near:.3g}", "", f"{far:.3g}"))
 
 

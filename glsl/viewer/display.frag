@@ -5,10 +5,12 @@
 // the integer views (ids, rings) and normals/depth are fetched at the nearest texel.
 //   VIEW 0 shaded    colour / samples (premultiplied sRGB, coverage in alpha) over the background
 //   VIEW 1 fiber ids hash of (guide + 1, ring, fiber) to a colour
-//   VIEW 2 rings     ring index on the heat scale: outer ring 0 yellow -> inner ring K-1 purple
+//   VIEW 2 rings     ring index on the heat ramp: (ring + 1) / rings, outer ring dark, inner ring hot
 //   VIEW 3 normals   world normal * 0.5 + 0.5
-//   VIEW 4 depth     ray distance, near (white) to far (black) over uDepthRange
-//   VIEW 5 heat map  fiber tests per pixel on the heat scale, 0 .. uHeatMax
+//   VIEW 4 depth     ray distance over uDepthRange: near white .. far 15 % grey
+//   VIEW 5 heat map  fiber tests per pixel on the heat ramp, 0 .. uHeatMax
+// Views 1-5 use app/render/debug_views.py's colours (the CLI's --output pictures); a miss shows the
+// background here (the CLI writes black).
 //   VIEW 6 proxies   the shaded image faded toward the background (proxy.* draws the wireframes over it)
 
 #ifndef VIEW
@@ -51,13 +53,12 @@ void main() {
 #if VIEW == 1
         c = id_color(id.xyz);
 #elif VIEW == 2
-        float r = float(id.y) / float(max(uRings - 1, 1));
-        c = heat_color(1.0 - r) * ((id.y & 1u) == 0u ? 1.0 : 0.75);   // neighbours told apart
+        c = heat_color((float(id.y) + 1.0) / float(max(uRings, 1)));
 #elif VIEW == 3
-        c = normalize(texelFetch(uGeom, texel, 0).xyz) * 0.5 + 0.5;
+        c = texelFetch(uGeom, texel, 0).xyz * 0.5 + 0.5;
 #elif VIEW == 4
         float d = (texelFetch(uGeom, texel, 0).w - uDepthRange.x) / max(uDepthRange.y - uDepthRange.x, 1e-30);
-        c = vec3(1.0 - clamp(d, 0.0, 1.0));
+        c = as_uint8(vec3(1.0 - 0.85 * clamp(d, 0.0, 1.0)));
 #endif
     }
 #endif

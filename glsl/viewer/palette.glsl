@@ -1,9 +1,12 @@
-// palette.glsl: colours for the viewer's debug views.
-//   vec3 id_color(uvec3 id)        a stable, well-spread colour per (guide + 1, ring, fiber)
-//   vec3 heat_color(float x)       x in [0, 1] -> 9-stop viridis, linearly interpolated
-// Twin: app/viewer/display.py (HEAT_STOPS, heat_color) draws the legend from the same stops.
+// palette.glsl: colours for the viewer's debug views, the GLSL twin of app/render/debug_views.py
+// (the command line's --output pictures), so the viewer and the CLI show the same colours.
+//   uint palette_hash(uint x)          lowbias32
+//   vec3 id_color(uvec3 id)            fiber_id_image: (guide + 1, ring, fiber) hashed; 60..255 per channel
+//   vec3 heat_color(float x)           heat(): x in [0, 1] on the 6-stop ramp (dark blue .. yellow .. red)
+//   vec3 as_uint8(vec3 c)              floor to 8 bits, as numpy's astype(uint8) truncates
+// Outputs are display values (written to an 8-bit target without conversion).
 
-uint palette_hash(uint x) {           // Chris Wellons' lowbias32
+uint palette_hash(uint x) {           // Chris Wellons' lowbias32 (app/reference.py: lowbias32)
     x ^= x >> 16;
     x *= 0x7feb352du;
     x ^= x >> 15;
@@ -12,26 +15,23 @@ uint palette_hash(uint x) {           // Chris Wellons' lowbias32
     return x;
 }
 
-vec3 hsv_to_rgb(vec3 c) {
-    vec3 k = clamp(abs(fract(c.x + vec3(0.0, 2.0, 1.0) / 3.0) * 6.0 - 3.0) - 1.0, 0.0, 1.0);
-    return c.z * mix(vec3(1.0), k, c.y);
+vec3 as_uint8(vec3 c) {
+    return floor(clamp(c, 0.0, 1.0) * 255.0) / 255.0;
 }
 
 vec3 id_color(uvec3 id) {
-    uint h = palette_hash(palette_hash(palette_hash(id.x) ^ id.y) ^ id.z);
-    float hue = float(h & 0xffffu) / 65535.0;
-    float sat = 0.55 + 0.4 * float((h >> 16) & 0xffu) / 255.0;
-    float val = 0.6 + 0.4 * float(h >> 24) / 255.0;
-    return hsv_to_rgb(vec3(hue, sat, val));
+    uint key = palette_hash(id.x * 73856093u ^ palette_hash(id.y * 19349663u ^ id.z)) | 1u;
+    uint h = palette_hash(key);
+    vec3 byte = vec3(float(h & 0xffu), float((h >> 8) & 0xffu), float((h >> 16) & 0xffu));
+    return floor(60.0 + byte * (195.0 / 255.0)) / 255.0;
 }
 
-const vec3 HEAT_STOPS[9] = vec3[9](
-    vec3(0.267, 0.005, 0.329), vec3(0.283, 0.141, 0.458), vec3(0.254, 0.265, 0.530),
-    vec3(0.207, 0.372, 0.553), vec3(0.164, 0.471, 0.558), vec3(0.128, 0.567, 0.551),
-    vec3(0.135, 0.659, 0.518), vec3(0.478, 0.821, 0.318), vec3(0.993, 0.906, 0.144));
+const vec3 HEAT_STOPS[6] = vec3[6](
+    vec3(0.05, 0.03, 0.25), vec3(0.1, 0.3, 0.6), vec3(0.1, 0.6, 0.6), vec3(0.5, 0.8, 0.3),
+    vec3(0.98, 0.85, 0.2), vec3(0.9, 0.2, 0.1));
 
 vec3 heat_color(float x) {
-    float s = clamp(x, 0.0, 1.0) * 8.0;
-    int i = min(int(s), 7);
-    return mix(HEAT_STOPS[i], HEAT_STOPS[i + 1], s - float(i));
+    float s = clamp(x, 0.0, 1.0) * 5.0;
+    int i = min(int(s), 4);
+    return as_uint8(mix(HEAT_STOPS[i], HEAT_STOPS[i + 1], s - float(i)));
 }
