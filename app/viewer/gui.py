@@ -261,7 +261,6 @@ def _panel(state: AppState, scratch: dict[str, Any], x: float, y: float, w: floa
         imgui.pop_text_wrap_pos()
     imgui.separator()
     imgui.push_item_width(-imgui.get_content_region_avail().x * 0.45)
-    covered: set[str] = set()
     sections = list(SECTIONS) + [(g.capitalize(), (g,)) for g in GROUPS
                                  if not any(g in gs for _, gs in SECTIONS)]
     for title, groups in sections:
@@ -276,7 +275,6 @@ def _panel(state: AppState, scratch: dict[str, Any], x: float, y: float, w: floa
                 for p in params:
                     if p.group == group:
                         param_widget(state, scratch, p)
-                        covered.add(p.key)
     if imgui.collapsing_header("Debug view", imgui.TreeNodeFlags_.default_open):
         _debug_panel(state)
     imgui.pop_item_width()
