@@ -4,9 +4,14 @@ A script is a TOML or JSON file (by extension; JSON may also be a bare list of s
 
     size = [640, 360]                        # optional: window size in screen coordinates
     steps = [
-      { open = "presets/blonde.toml" },      # preset path or bundled name (discard = true by default)
+      { open = "presets/carpet.toml" },      # preset path or bundled name (discard = true by default;
+                                             # discard = false asks, and { answer = ... } replies)
+      { bundled = "carpet" },                # File > Open bundled preset
+      { revert = true },                     # File > Revert
+      { open_groom = "hair/Bangs_100.hair" },    # a groom under the current look
       { set = { "fibers.rings" = 20, "look.color" = [0.8, 0.5, 0.3] } },   # as sliders would
       { wait = 3 },                          # frames shown on screen
+      { wait_seconds = 0.5 },
       { wait_final = true },                 # until the full-quality frame (all samples) is shown
       { wait_for = "shader_error", timeout = 30 },    # until a report field is set ("not:x": cleared)
       { screenshot = "out.png", size = [640, 360], view = "shaded" },      # offscreen, no UI
