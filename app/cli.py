@@ -208,7 +208,7 @@ def cmd_presets(args) -> int:
 def cmd_view(args) -> int:
     from .viewer.app import run_viewer
 
-    return run_viewer(args.target, script=args.script)
+    return run_viewer(args.target, script=args.script, size=parse_size(args.size))
 
 
 def cmd_bench(args) -> int:
@@ -252,6 +252,7 @@ def make_parser() -> argparse.ArgumentParser:
     v = sub.add_parser("view", help="open the lookdev viewer")
     v.add_argument("target", nargs="?", help="preset name or file, or a groom file")
     v.add_argument("--script", help="run a viewer script (automated sessions and tests)")
+    v.add_argument("--size", default="1280x720", help="window size WIDTHxHEIGHT (default 1280x720)")
     v.set_defaults(func=cmd_view)
 
     b = sub.add_parser("bench", help="run the benchmark suites (see: vfiber bench --help)", add_help=False)

@@ -30,14 +30,18 @@ from ..scene.containers import SEGMENT_BYTES, Scene
 from .camera import Camera
 
 MAX_RINGS = 64
-# llvmpipe ends all of an invocation's loops silently once it has made this many passes through loop
-# headers in all; a loop's final, failing test is a pass too, so a loop of n iterations costs n + 1
+# llvmpipe ends all loops of a fragment shader silently once they have made this many passes through loop
+# headers in all; a loop's final, failing test is a pass too, so a loop of n iterations costs n + 1. The
+# count is kept per SIMD batch of fragments, not per fragment: where lanes take different branches, the
+# batch runs the loops of every branch taken, and a loop as often as its longest lane needs.
 LOOP_CAP = 65_535
 BRUTE_CHUNK = 60_000              # fibers per brute-force draw: stays under LOOP_CAP with 64 rings
 MAX_SUB = 16                      # chord pieces per curved-fiber test (glsl/fibers/curved.glsl)
-# curved fibers are tested once per arc (at most 2 per ring), each test one pass of the candidate loop
-# plus up to MAX_SUB + 1 of its chord loop; 16 passes per ring pay for the ring, arc and canary loops
-BRUTE_CHUNK_SHAPED = (LOOP_CAP - 16 * MAX_RINGS) // (2 * (MAX_SUB + 2))
+# A ray visits a ring of curved fibers on two of four arcs (front or first half in the ring loop, second
+# half or back in the loops after it), so a batch whose lanes differ may visit it on all four. Each test is
+# one pass of the candidate loop plus up to MAX_SUB + 1 of the chord loop; 16 passes per ring pay for the
+# ring, arc and canary loops.
+BRUTE_CHUNK_SHAPED = (LOOP_CAP - 16 * MAX_RINGS) // (4 * (MAX_SUB + 2))
 TWIST_PATTERNS = {"uniform": 0, "ramped": 1, "alternating": 2}
 CURL_PATTERNS = {"helix": 0, "wave": 1}
 SHADING_MODELS = {"kajiya_kay": 0, "marschner": 1}
@@ -91,6 +95,7 @@ class Renderer:
         self._vaos: dict[int, moderngl.VertexArray] = {}
         self._targets: dict[tuple, moderngl.Framebuffer] = {}
         self._parking = ctx.framebuffer(ctx.renderbuffer((1, 1)))   # bound while targets are released
+        self._clear_vao: moderngl.VertexArray | None = None
 
     # --- scene -------------------------------------------------------------------------------------
     def set_scene(self, scene: Scene) -> None:
@@ -139,6 +144,24 @@ class Renderer:
                        self.ctx.texture(size, 4, dtype="f4")]
                 self._targets[key] = self.ctx.framebuffer(att, self.ctx.depth_renderbuffer(size))
         return self._targets[key]
+
+    def targets(self, size: tuple[int, int]) -> moderngl.Framebuffer:
+        """The framebuffer ``render`` draws into at ``size``: colour (premultiplied RGBA8), ids (RGBA32UI),
+        geometry (RGBA32F) and depth. The viewer displays its colour texture without a read-back."""
+        return self._target((int(size[0]), int(size[1])), cost=False)
+
+    def _clear(self, fbo: moderngl.Framebuffer) -> None:
+        """Zero all three targets and set depth to 1 with one fullscreen pass: glClear is undefined on
+        integer attachments, and uploading zeros costs ~38 ms per 1280x720 frame on llvmpipe."""
+        ctx = self.ctx
+        if self._clear_vao is None:
+            prog = self.programs.get(ctx, "stages/fullscreen.vert", "stages/clear.frag")
+            self._clear_vao = ctx.vertex_array(prog, [])
+        ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.depth_func = "1"
+        self._clear_vao.render(moderngl.TRIANGLES, vertices=3)
+        self._prepare_state()
 
     def _msaa_samples(self, p: Params) -> int:
         n = p["quality.msaa"]
@@ -232,20 +255,18 @@ class Renderer:
         if "uClipFromCamera" in prog:
             prog["uClipFromCamera"].write(cam.clip_from_camera(w / h).T.copy().tobytes())
 
-    def _draw(self, prog: moderngl.Program, p: Params, mode: str) -> int:
-        """Draw every container; brute mode draws each container's fibers in chunks. Returns draw count."""
+    def _draw(self, prog: moderngl.Program, p: Params, mode: str, rays: int | None = None) -> int:
+        """Draw every container, once per range of ``draw_ranges`` (brute mode: chunks of each container's
+        fibers; fast and exact: one draw unless a traversal could pass the loop budget). ``rays``: traversals
+        per fragment (default: the most ``p`` can ask for). Returns the draw count."""
         vao = self._vao(prog)
-        if mode != "brute":
+        ranges = draw_ranges(p, self.scene, mode, traversals_per_fragment(p, mode) if rays is None else rays)
+        for start, end in ranges:
+            for name in ("uBruteRange", "uFiberRange"):
+                if name in prog:
+                    prog[name].value = (start, end)
             vao.render(moderngl.TRIANGLES, instances=self.scene.n_segments)
-            return 1
-        total = reference.ring_layout(p).fibers_per_container
-        chunk = BRUTE_CHUNK_SHAPED if is_shaped(p) else BRUTE_CHUNK
-        draws = 0
-        for start in range(0, total, chunk):
-            prog["uBruteRange"].value = (start, min(total, start + chunk))
-            vao.render(moderngl.TRIANGLES, instances=self.scene.n_segments)
-            draws += 1
-        return draws
+        return len(ranges)
 
     def render(self, p: Params, cam: Camera, size: tuple[int, int], *, outputs=("color",),
                offset=(0.0, 0.0), mode: str | None = None, antialias: bool = True) -> Frame:
@@ -270,10 +291,7 @@ class Renderer:
             fbo = self._target(size, cost=False)
             fbo.use()
             ctx.viewport = (0, 0) + size
-            fbo.color_attachments[0].write(np.zeros(size[0] * size[1] * 4, np.uint8).tobytes())
-            fbo.color_attachments[1].write(np.zeros(size[0] * size[1] * 4, np.uint32).tobytes())
-            fbo.color_attachments[2].write(np.zeros(size[0] * size[1] * 4, np.float32).tobytes())
-            _clear_depth(fbo)
+            self._clear(fbo)
             ctx.enable(moderngl.DEPTH_TEST)
             ctx.depth_func = "<"
             prog = self.program(p, mode, cost=False, supersample=supersample)
@@ -321,6 +339,98 @@ class Renderer:
         return frame
 
 
+def traversals_per_fragment(p: Params, mode: str) -> int:
+    """The most traversals one fragment can run: a ray per supersample or MSAA sample (brute casts one),
+    twice that with traced shadows (each hit sends a shadow ray through the same container)."""
+    rays = 1 if mode == "brute" else max(p["quality.supersample"] ** 2, p["quality.msaa"], 1)
+    return rays * (2 if p["look.self_shadow"] == "traced" else 1)
+
+
+# Loop passes one traversal may spend in fast and exact modes, per draw: what the budget leaves once the
+# shading, the loop canary and rounding in the bound below are paid for.
+LOOP_HEADROOM = 1024
+
+
+def candidate_caps(p: Params, scene: Scene) -> tuple[np.ndarray, int]:
+    """Per ring, the most fibers one piece (arc) of a ray can test in fast and exact modes, and the loop
+    passes one test costs. Mirrors the candidate windows of glsl/fibers/traverse.glsl: a piece sweeps less than 90 degrees
+    about the axis (it ends at a ring boundary or at the ray's closest approach), widened by the ring's
+    reach on either side and, for curved fibers, by the twist over the segment."""
+    lay = reference.ring_layout(p)
+    eps_angle = 2e-5                                    # glsl/common/epsilon.glsl: EPS_ANGLE
+    sweep = 0.5 * math.pi + 1e-3
+    if not is_shaped(p):
+        width = sweep + 2.0 * (lay.reach + eps_angle)
+        per_test = 1
+    else:
+        sh = reference.Shape.from_params(p)
+        seg = scene.segments.astype(np.float64)
+        axis = seg[:, 4:7] - seg[:, 0:3]
+        h = np.linalg.norm(axis, axis=1)
+        ez = axis / h[:, None]
+
+        def slope(n):                                   # container.glsl: joint_slope
+            c = np.abs((n * ez).sum(1))
+            return np.sqrt(np.maximum(0.0, 1.0 - c * c)) / np.maximum(c, 1e-6)
+
+        r_bound = np.maximum(seg[:, 3], seg[:, 7])
+        z_lo, z_hi = -r_bound * slope(seg[:, 8:11]), h + r_bound * slope(seg[:, 12:15])
+        v_lo = seg[:, 11] + (seg[:, 15] - seg[:, 11]) * z_lo / h   # the guide parameter over the slab
+        v_hi = seg[:, 11] + (seg[:, 15] - seg[:, 11]) * z_hi / h
+        e_lo = float(np.min(np.minimum(reference.shape_scale(sh, v_lo), reference.shape_scale(sh, v_hi))))
+        dv = np.abs(v_hi - v_lo) * (2.0 * np.maximum(np.abs(v_lo), np.abs(v_hi)) if sh.twist_pattern == 1
+                                    else 1.0)
+        twist = 2.0 * math.pi * abs(sh.twist) * float(dv.max())
+        d_min = e_lo * (lay.rho - lay.max_dr)           # traverse.glsl: shaped_reach
+        r = lay.fiber_radius + sh.curl_amplitude
+        with np.errstate(divide="ignore", invalid="ignore"):
+            disc = np.where(d_min > r, np.arcsin(np.minimum(1.0, r / d_min)), math.pi)
+        width = sweep + twist + 2.0 * (lay.max_dphi + disc + eps_angle)
+        per_test = 1 + MAX_SUB + 1                      # the candidate loop's pass, the chord loop's
+    caps = np.minimum(lay.n, np.floor(width / lay.dphi).astype(np.int64) + 2)
+    return caps, per_test
+
+
+def draw_ranges(p: Params, scene: Scene, mode: str, rays: int = 1) -> list[tuple[int, int]]:
+    """Ranges [start, end) of a container's flat fiber numbering, one draw each, such that no SIMD batch of
+    fragments passes llvmpipe's loop budget: it would stop every loop in silence and lose fibers.
+
+    Brute force tests each fiber of its chunk once (straight) or on each arc (curved). Fast and exact test
+    a ring's candidates on each piece of the ray in that ring, at most ``candidate_caps`` of them. A batch
+    visits a straight ring on its front and back pieces, and the deepest pieces of its lanes (any ring, the
+    costliest one bounds them); a curved ring on up to four arcs. Rings are packed into draws greedily, a
+    ring split when it alone is too much. Every bundled layout needs one draw; 64 rings of 0.01 degree
+    fibers, or curled fibers whose reach is the whole ring, need several, and the depth test keeps the
+    nearest hit across them as it does in brute mode. ``rays``: traversals per fragment."""
+    lay = reference.ring_layout(p)
+    total = lay.fibers_per_container
+    if mode == "brute":
+        chunk = BRUTE_CHUNK_SHAPED if is_shaped(p) else BRUTE_CHUNK
+        return [(start, min(total, start + chunk)) for start in range(0, total, chunk)]
+    caps, per_test = candidate_caps(p, scene)
+    budget = (LOOP_CAP - LOOP_HEADROOM) // max(1, rays) - (16 * lay.rings + 16)   # ring, arc, canary loops
+    visits, deepest = (2, 2) if not is_shaped(p) else (4, 0)    # per ring; per draw, at its costliest ring
+    if (visits + deepest) * per_test > budget:
+        raise ValueError(f"{rays} traversals per fragment leave no loop budget for one fiber test")
+    ranges, start, used, top = [], 0, 0, 0                      # top: the open draw's costliest ring
+    for i in range(lay.rings):
+        pos, left = int(lay.first[i]), int(lay.n[i])
+        while left > 0:
+            tests = per_test * min(left, int(caps[i]))
+            if used + visits * tests + deepest * max(top, tests) <= budget:
+                used, top, pos, left = used + visits * tests, max(top, tests), pos + left, 0
+                continue
+            # the fibers of this ring that still fit
+            fit = (budget - used - deepest * top) // ((visits + deepest) * per_test)
+            if fit > 0:
+                pos, left = pos + fit, left - fit
+            if pos > start:
+                ranges.append((start, pos))
+            start, used, top = pos, 0, 0
+    ranges.append((start, total))
+    return ranges
+
+
 def is_shaped(p: Params) -> bool:
     """Curved fibers need the slower curved-fiber traversal; straight ones keep the fast path."""
     return p["shape.ellipsoid"] > 0 or p["shape.curl_amplitude"] > 0 or p["shape.twist"] != 0
@@ -334,14 +444,6 @@ def scene_gpu_bytes(scene: Scene) -> int:
 def supersample_offsets(n: int) -> list[tuple[float, float]]:
     """n x n stratified sub-pixel offsets (pixel units, about the pixel centre)."""
     return [((i + 0.5) / n - 0.5, (j + 0.5) / n - 0.5) for j in range(n) for i in range(n)]
-
-
-def _clear_depth(fbo: moderngl.Framebuffer) -> None:
-    # glClear on integer colour attachments is undefined, so mask colour off and clear depth alone
-    mask = fbo.color_mask
-    fbo.color_mask = tuple((False,) * 4 for _ in fbo.color_attachments)
-    fbo.clear(depth=1.0)
-    fbo.color_mask = mask
 
 
 def _upscale(frame: Frame, size: tuple[int, int]) -> Frame:

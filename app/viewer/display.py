@@ -102,16 +102,16 @@ class ViewportRenderer:
             self._query = None
 
     # --- programs ----------------------------------------------------------------------------------
-    def _prog(self, frag: str, vert: str = "viewer/fullscreen.vert", defines=None) -> moderngl.Program:
+    def _prog(self, frag: str, vert: str = "stages/fullscreen.vert", defines=None) -> moderngl.Program:
         return self.programs.get(self.ctx, vert, frag, defines)
 
     def compile_all(self, programs: ProgramCache | None = None) -> None:
         """Compile every viewer program now (hot reload tries a fresh cache with this before swapping)."""
         cache = programs or self.programs
-        for frag in ("viewer/clear.frag", "viewer/accumulate.frag"):
-            cache.get(self.ctx, "viewer/fullscreen.vert", frag)
+        for frag in ("stages/clear.frag", "viewer/accumulate.frag"):
+            cache.get(self.ctx, "stages/fullscreen.vert", frag)
         for code in VIEW_CODE.values():
-            cache.get(self.ctx, "viewer/fullscreen.vert", "viewer/display.frag", {"VIEW": code})
+            cache.get(self.ctx, "stages/fullscreen.vert", "viewer/display.frag", {"VIEW": code})
         cache.get(self.ctx, "viewer/proxy.vert", "viewer/proxy.frag")
 
     def _fullscreen(self, prog: moderngl.Program) -> None:
@@ -246,7 +246,7 @@ class ViewportRenderer:
         ctx.disable(moderngl.BLEND | moderngl.CULL_FACE)
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.depth_func = "1"                       # always: the clear pass writes depth 1 everywhere
-        self._fullscreen(self._prog("viewer/clear.frag"))
+        self._fullscreen(self._prog("stages/clear.frag"))
         # the renderer's own state and draw (Renderer.render minus clears and readback)
         ctx.enable(moderngl.CULL_FACE)
         ctx.front_face = "ccw"
