@@ -42,6 +42,7 @@ int gMode = TRAVERSAL;          // a shadow ray switches to 0 (any hit) for itse
 int gSkipRing = -1;             // a shadow ray starts on this fiber: never count it as a blocker
 int gSkipFiber = -1;
 uniform ivec2 uBruteRange;
+uniform ivec2 uFiberRange;      // fast, exact: test only fibers [x, y) of the container's flat numbering
 
 #if SHAPED
 #include "fibers/curved.glsl"
@@ -97,6 +98,38 @@ float wrap_pi(float a) {
     return a - 6.28318530718 * floor((a + 3.14159265359) / 6.28318530718);
 }
 
+// The share [lo, hi) of ring i's fibers this draw tests: the renderer splits the fibers over draws when
+// one traversal could otherwise pass llvmpipe's loop budget (renderer.py: draw_ranges); unset, all.
+ivec2 ring_share(int i, ivec2 range) {
+    int n = uRingN[i].x;
+    if (range.y <= range.x) return ivec2(0, n);
+    return clamp(range - uRingN[i].y, 0, n);
+}
+
+// The candidates j0, j0 + dir, ... (count <= n of them, taken mod n) are at most two runs j = base + dir k,
+// before and after the wrap past fiber 0; run r clipped to the share: (first j, number of fibers).
+ivec2 candidate_run(int r, int j0, int dir, int count, int n, ivec2 share) {
+    int m0 = j0 - n * int(floor(float(j0) / float(n)));   // the first candidate, in [0, n)
+    int wrapK = dir > 0 ? n - m0 : m0 + 1;                 // k of the first candidate past the wrap
+    int base = r == 0 ? m0 : m0 - dir * n;
+    int kA = r == 0 ? 0 : wrapK;
+    int kB = r == 0 ? min(count, wrapK) : count;
+    if (dir > 0) {
+        kA = max(kA, share.x - base);
+        kB = min(kB, share.y - base);
+    } else {
+        kA = max(kA, base - share.y + 1);
+        kB = min(kB, base - share.x + 1);
+    }
+    return ivec2(base + dir * kA, max(0, kB - kA));
+}
+
+// The t-th candidate of the two runs: one loop over both, so that lanes of one SIMD batch whose runs
+// split differently still cost the batch only the longest lane (llvmpipe's loop budget is per batch).
+int candidate(ivec2 run0, ivec2 run1, int dir, int t) {
+    return t < run0.y ? run0.x + dir * t : run1.x + dir * (t - run0.y);
+}
+
 // Test the candidates of ring i on the piece [sA, sB] of the ray. Returns true when traversal is over.
 bool visit_piece(Segment seg, UnitRay ur, int i, float sA, float sB, inout FiberHit best) {
     sA = max(sA, ur.s0);
@@ -119,11 +152,12 @@ bool visit_piece(Segment seg, UnitRay ur, int i, float sA, float sB, inout Fiber
     int j0 = dir > 0 ? int(ceil(first)) : int(floor(first));
     int j1 = dir > 0 ? int(floor(last)) : int(ceil(last));
     int count = min(max(0, (j1 - j0) * dir + 1), n);
-    for (int k = 0; k < count; k++) {
+    ivec2 share = ring_share(i, uFiberRange);
+    ivec2 run0 = candidate_run(0, j0, dir, count, n, share);
+    ivec2 run1 = candidate_run(1, j0, dir, count, n, share);
+    for (int t = 0; t < run0.y + run1.y; t++) {
         gIters++;
-        int j = j0 + k * dir;
-        j -= n * int(floor(float(j) / float(n)));   // into [0, n)
-        test_fiber(seg, ur, i, j, best);
+        test_fiber(seg, ur, i, candidate(run0, run1, dir, t), best);
         if (gMode == 0 && best.s < INF) return true;   // fast: the first fiber found wins
     }
     return false;
@@ -172,11 +206,14 @@ bool visit_shaped(Segment seg, UnitRay ur, int i, float sA, float sB, Bands band
     gPieces++;
     int n = uRingN[i].x;
     int j0, count, dir;
+    ivec2 share;
     if (gMode == 2) {
-        j0 = max(0, uBruteRange.x - uRingN[i].y);
-        count = max(0, min(n, uBruteRange.y - uRingN[i].y) - j0);
+        j0 = 0;
+        count = n;
         dir = 1;
+        share = ring_share(i, uBruteRange);
     } else {
+    share = ring_share(i, uFiberRange);
     vec2 pA = ur.O.xy + a * ur.D.xy;
     vec2 pB = ur.O.xy + b * ur.D.xy;
     float thA = dot(pA, pA) > 0.0 ? atan(pA.y, pA.x) : atan(pB.y, pB.x);
@@ -194,10 +231,11 @@ bool visit_shaped(Segment seg, UnitRay ur, int i, float sA, float sB, Bands band
     int j1 = dir > 0 ? int(floor(last)) : int(ceil(last));
     count = min(max(0, (j1 - j0) * dir + 1), n);
     }
-    for (int k = 0; k < count; k++) {
+    ivec2 run0 = candidate_run(0, j0, dir, count, n, share);
+    ivec2 run1 = candidate_run(1, j0, dir, count, n, share);
+    for (int t = 0; t < run0.y + run1.y; t++) {
         gIters++;
-        int j = j0 + k * dir;
-        j -= n * int(floor(float(j) / float(n)));
+        int j = candidate(run0, run1, dir, t);
         if (i == gSkipRing && j == gSkipFiber) continue;
         vec2 rest;
         float vEnd;
@@ -246,12 +284,16 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
             halves[nOnce++] = outer.y;
         }
     }
-    for (int k = 0; k < nOnce; k++) {
+    // loops over ring indices, not over this ray's list: every lane of a SIMD batch visits the same ring
+    // at the same iteration, so a batch pays each ring's candidates once per visit, whatever its lanes do
+    for (int i = 0; i < uRings; i++) {
         gIters++;
-        if (visit_shaped(seg, ur, nTwice + k, sMid, halves[k], bands, best)) return best;
+        if (i < nTwice || i >= nTwice + nOnce) continue;
+        if (visit_shaped(seg, ur, i, sMid, halves[i - nTwice], bands, best)) return best;
     }
-    for (int i = nTwice - 1; i >= 0; i--) {
+    for (int i = uRings - 1; i >= 0; i--) {
         gIters++;
+        if (i >= nTwice) continue;
         if (visit_shaped(seg, ur, i, backs[i].x, backs[i].y, bands, best)) return best;
     }
     return best;
@@ -297,8 +339,9 @@ FiberHit traverse_fibers(Segment seg, UnitRay ur) {
     float sMid = a > 0.0 ? -dot(o2, d2) / a : ur.s0;
     if (visit_piece(seg, ur, deepest, outer.x, sMid, best)) return best;
     if (visit_piece(seg, ur, deepest, sMid, outer.y, best)) return best;
-    for (int i = deepest - 1; i >= 0; i--) {
+    for (int i = K - 2; i >= 0; i--) {      // by ring index: the same ring in every lane of a SIMD batch
         gIters++;
+        if (i >= deepest) continue;
         if (visit_piece(seg, ur, i, backStack[i].x, backStack[i].y, best)) return best;
     }
     return best;
