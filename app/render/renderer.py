@@ -353,14 +353,17 @@ LOOP_HEADROOM = 1024
 
 def candidate_caps(p: Params, scene: Scene) -> tuple[np.ndarray, int]:
     """Per ring, the most fibers one piece (arc) of a ray can test in fast and exact modes, and the loop
-    passes one test costs. Mirrors the candidate windows of glsl/fibers/traverse.glsl: a piece sweeps less than 90 degrees
-    about the axis (it ends at a ring boundary or at the ray's closest approach), widened by the ring's
-    reach on either side and, for curved fibers, by the twist over the segment."""
+    passes one test costs. Mirrors the candidate windows of glsl/fibers/traverse.glsl: a piece of ring i
+    runs between the ring's outer circle and its inner circle or the ray's closest approach to the axis,
+    which is no nearer than the inner circle (of the first ring crossed once, for curved bands); seen from
+    the axis it sweeps at most acos(inner / outer). The window adds the ring's reach on either side and,
+    for curved fibers, the twist over the segment."""
     lay = reference.ring_layout(p)
     eps_angle = 2e-5                                    # glsl/common/epsilon.glsl: EPS_ANGLE
-    sweep = 0.5 * math.pi + 1e-3
+    K = lay.rings
     if not is_shaped(p):
-        width = sweep + 2.0 * (lay.reach + eps_angle)
+        inner, outer = 1.0 - (np.arange(K) + 1.0) / K, 1.0 - np.arange(K) / K
+        widen = 2.0 * (lay.reach + eps_angle)
         per_test = 1
     else:
         sh = reference.Shape.from_params(p)
@@ -378,6 +381,9 @@ def candidate_caps(p: Params, scene: Scene) -> tuple[np.ndarray, int]:
         v_lo = seg[:, 11] + (seg[:, 15] - seg[:, 11]) * z_lo / h   # the guide parameter over the slab
         v_hi = seg[:, 11] + (seg[:, 15] - seg[:, 11]) * z_hi / h
         e_lo = float(np.min(np.minimum(reference.shape_scale(sh, v_lo), reference.shape_scale(sh, v_hi))))
+        grow = lay.fiber_radius + sh.curl_amplitude + 1e-6      # traverse.glsl: ring_band
+        inner = np.maximum(0.0, e_lo * (lay.rho - lay.max_dr) - grow)
+        outer = (lay.rho + lay.max_dr) + grow                   # e_hi <= 1
         dv = np.abs(v_hi - v_lo) * (2.0 * np.maximum(np.abs(v_lo), np.abs(v_hi)) if sh.twist_pattern == 1
                                     else 1.0)
         twist = 2.0 * math.pi * abs(sh.twist) * float(dv.max())
@@ -385,9 +391,11 @@ def candidate_caps(p: Params, scene: Scene) -> tuple[np.ndarray, int]:
         r = lay.fiber_radius + sh.curl_amplitude
         with np.errstate(divide="ignore", invalid="ignore"):
             disc = np.where(d_min > r, np.arcsin(np.minimum(1.0, r / d_min)), math.pi)
-        width = sweep + twist + 2.0 * (lay.max_dphi + disc + eps_angle)
+        widen = twist + 2.0 * (lay.max_dphi + disc + eps_angle)
         per_test = 1 + MAX_SUB + 1                      # the candidate loop's pass, the chord loop's
-    caps = np.minimum(lay.n, np.floor(width / lay.dphi).astype(np.int64) + 2)
+    closest = np.minimum.accumulate(inner)              # no ring deeper than the ray's closest approach
+    sweep = np.arccos(np.clip(closest / outer, 0.0, 1.0)) + 1e-3
+    caps = np.minimum(lay.n, np.floor((sweep + widen) / lay.dphi).astype(np.int64) + 2)
     return caps, per_test
 
 

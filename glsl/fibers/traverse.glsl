@@ -136,6 +136,8 @@ bool visit_piece(Segment seg, UnitRay ur, int i, float sA, float sB, inout Fiber
     sB = min(sB, ur.s1);
     if (!(sA <= sB)) return false;          // this stretch lies outside the container (caps, joints)
     if (sA >= best.s) return true;          // pieces come in ray order: nothing later can be nearer
+    ivec2 share = ring_share(i, uFiberRange);
+    if (share.x >= share.y) return false;   // none of this ring's fibers is in this draw
     gPieces++;
     vec2 pA = ur.O.xy + sA * ur.D.xy;
     vec2 pB = ur.O.xy + sB * ur.D.xy;
@@ -152,7 +154,6 @@ bool visit_piece(Segment seg, UnitRay ur, int i, float sA, float sB, inout Fiber
     int j0 = dir > 0 ? int(ceil(first)) : int(floor(first));
     int j1 = dir > 0 ? int(floor(last)) : int(ceil(last));
     int count = min(max(0, (j1 - j0) * dir + 1), n);
-    ivec2 share = ring_share(i, uFiberRange);
     ivec2 run0 = candidate_run(0, j0, dir, count, n, share);
     ivec2 run1 = candidate_run(1, j0, dir, count, n, share);
     for (int t = 0; t < run0.y + run1.y; t++) {
@@ -203,17 +204,16 @@ bool visit_shaped(Segment seg, UnitRay ur, int i, float sA, float sB, Bands band
     float b = min(sB, ur.s1);
     if (!(a <= b)) return false;
     if (gMode != 2 && a >= best.s) return true;
+    ivec2 share = ring_share(i, gMode == 2 ? uBruteRange : uFiberRange);
+    if (share.x >= share.y) return false;   // none of this ring's fibers is in this draw
     gPieces++;
     int n = uRingN[i].x;
     int j0, count, dir;
-    ivec2 share;
     if (gMode == 2) {
         j0 = 0;
         count = n;
         dir = 1;
-        share = ring_share(i, uBruteRange);
     } else {
-    share = ring_share(i, uFiberRange);
     vec2 pA = ur.O.xy + a * ur.D.xy;
     vec2 pB = ur.O.xy + b * ur.D.xy;
     float thA = dot(pA, pA) > 0.0 ? atan(pA.y, pA.x) : atan(pB.y, pB.x);
