@@ -61,14 +61,16 @@ class Env:
             self._explicit.release_targets()
             self._explicit = None
 
+    # Frames are timed with outputs=("draw",): clear, draw, ctx.finish(), nothing read back, so that a
+    # method's time is its rendering and not numpy's compositing or the read-back (the same for both).
     def time_virtual(self, p: Params, cam: Camera, size, mode: str, reps: int | None = None):
         r = self.virtual
-        return time_frames(lambda: r.render(p, cam, size, outputs=("color",), mode=mode),
+        return time_frames(lambda: r.render(p, cam, size, outputs=("draw",), mode=mode),
                            warmup=self.warmup, reps=reps or self.reps, sync=self.ctx.finish)
 
     def time_explicit(self, p: Params, cam: Camera, size, reps: int | None = None):
         e = self.explicit
-        return time_frames(lambda: e.render(p, cam, size, outputs=("color",)),
+        return time_frames(lambda: e.render(p, cam, size, outputs=("draw",)),
                            warmup=self.warmup, reps=reps or self.reps, sync=self.ctx.finish)
 
     def cost(self, p: Params, cam: Camera, size, mode: str) -> dict[str, float]:
@@ -172,7 +174,7 @@ def memory_run(env: Env, cfg: dict) -> list[Row]:
     row["build_s"] = round(stats.seconds, 4)
     row["gpu_bytes"] = env.explicit.gpu_bytes
     if cfg.get("frames") == 1:
-        t = time_frames(lambda: env.explicit.render(p, cam, size, outputs=("color", "ids")), warmup=0, reps=1,
+        t = time_frames(lambda: env.explicit.render(p, cam, size, outputs=("draw",)), warmup=0, reps=1,
                         sync=env.ctx.finish)
         row.update(_timing_row("", t), cv=None)
     else:
@@ -315,7 +317,7 @@ def accuracy_run(env: Env, cfg: dict) -> list[Row]:
                     "containers": scene.n_segments, "width": size[0], "height": size[1]}
         if mode == "brute" and env.level != "full":
             # brute force of curved fibers costs seconds a frame even here: the quick run times 3 frames
-            row.update(_timing_row("", time_frames(lambda: r.render(p, cam, size, outputs=("color",),
+            row.update(_timing_row("", time_frames(lambda: r.render(p, cam, size, outputs=("draw",),
                                                                      mode=mode), warmup=0, reps=3,
                                                    sync=env.ctx.finish)))
         else:

@@ -1,9 +1,11 @@
 """Timing, memory and machine facts for the benchmarks.
 
 llvmpipe renders on the CPU, shares it with everything else on the machine, and moderngl's GL timer query
-is 32-bit (it wraps past ~4.3 s), so frames are timed with the wall clock around a render that ends in a
-read-back (which waits for the GPU, here the CPU threads): warm-up frames first (shader compilation,
-first-touch allocation), then the median of at least ``reps`` frames and their coefficient of variation.
+is 32-bit (it wraps past ~4.3 s), so frames are timed with the wall clock around a render followed by
+``ctx.finish()`` (which waits for the GPU, here llvmpipe's threads): warm-up frames first (shader
+compilation, first-touch allocation), then the median of at least ``reps`` frames and their coefficient of
+variation. The suites render with ``outputs=("draw",)``: nothing is read back, so a frame's time is the
+method's rendering, not a read-back or numpy post-processing that both methods would share.
 """
 
 from __future__ import annotations

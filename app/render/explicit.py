@@ -272,7 +272,7 @@ class ExplicitRenderer:
         self._fibers: moderngl.Buffer | None = None
         self._vaos: dict[int, moderngl.VertexArray] = {}
         self._targets: dict[tuple, moderngl.Framebuffer] = {}
-        self._zeros: dict[tuple, tuple[bytes, bytes]] = {}
+        self._clear_vao: moderngl.VertexArray | None = None
         # bound while targets are released: moderngl restores the previous binding after creating a
         # framebuffer, and rebinding a released one is an invalid operation
         self._parking: moderngl.Framebuffer | None = None
@@ -391,7 +391,8 @@ class ExplicitRenderer:
 
     def render(self, p: Params, cam: Camera, size: tuple[int, int], *, outputs=("color", "ids"),
                offset=(0.0, 0.0)) -> Frame:
-        """Rasterize every fiber. ``outputs``: any of color, ids, geom (normal xyz, distance). Fibers are
+        """Rasterize every fiber. ``outputs``: any of color, ids, geom (normal xyz, distance), draw (render,
+        read nothing back: for timing, like the virtual renderer's). Fibers are
         regenerated first if a fiber-layout parameter changed since ``set_scene`` (the explicit method's
         price for a slider move; the virtual one only uploads uniforms)."""
         if self.scene is None:
@@ -409,7 +410,7 @@ class ExplicitRenderer:
         fbo = self._target(size)
         fbo.use()
         ctx.viewport = (0, 0) + size
-        self._clear(fbo, size)
+        self._clear()
         ctx.disable(moderngl.BLEND)
         ctx.disable(moderngl.CULL_FACE)
         ctx.enable(moderngl.DEPTH_TEST)
@@ -430,19 +431,17 @@ class ExplicitRenderer:
             frame.geom = _read(fbo, 2, "f4", size)
         return frame
 
-    def _clear(self, fbo: moderngl.Framebuffer, size) -> None:
-        # the virtual renderer's way: integer attachments cannot take glClear's float colour
-        if size not in self._zeros:
-            n = size[0] * size[1]
-            self._zeros[size] = (bytes(n * 4), bytes(n * 16))
-        small, big = self._zeros[size]
-        fbo.color_attachments[0].write(small)
-        fbo.color_attachments[1].write(big)
-        fbo.color_attachments[2].write(big)
-        mask = fbo.color_mask
-        fbo.color_mask = tuple((False,) * 4 for _ in fbo.color_attachments)
-        fbo.clear(depth=1.0)
-        fbo.color_mask = mask
+    def _clear(self) -> None:
+        """Zero colour, ids and geometry and set depth to 1 in one fullscreen pass, as the virtual renderer
+        does (glClear is undefined on integer attachments; uploading zeros costs tens of ms)."""
+        ctx = self.ctx
+        if self._clear_vao is None:
+            prog = self.programs.get(ctx, "stages/fullscreen.vert", "stages/clear.frag")
+            self._clear_vao = ctx.vertex_array(prog, [])
+        ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.depth_func = "1"
+        self._clear_vao.render(moderngl.TRIANGLES, vertices=3)
 
 
 SHADING_MODELS = {"kajiya_kay": 0, "marschner": 1}
