@@ -75,6 +75,14 @@ float fiber_test(Segment seg, UnitRay ur, vec2 c, float vEnd, out int kind) {
     return sIn;
 }
 
+// Whether a hit at s on fiber (ring, j) replaces the best so far. Ties (a ray entering through a cap
+// inside two overlapping fibers) go to the lower (ring, fiber), the order brute force tests them in, so
+// every mode names the same fiber.
+bool improves(FiberHit best, float s, int ring, int j) {
+    bool tie = s == best.s && (ring < best.ring || (ring == best.ring && j < best.fiber));
+    return s < best.s || (tie && s < INF);
+}
+
 void test_fiber(Segment seg, UnitRay ur, int ring, int j, inout FiberHit best) {
     if (ring == gSkipRing && j == gSkipFiber) return;
     vec2 c;
@@ -82,10 +90,7 @@ void test_fiber(Segment seg, UnitRay ur, int ring, int j, inout FiberHit best) {
     fiber_center(seg.guide, ring, j, c, vEnd);
     int kind;
     float s = fiber_test(seg, ur, c, vEnd, kind);
-    // Ties (a ray entering through a cap inside two overlapping fibers) go to the lower (ring, fiber),
-    // the order brute force tests them in, so every mode names the same fiber.
-    bool tie = s == best.s && (ring < best.ring || (ring == best.ring && j < best.fiber));
-    if (s < best.s || (tie && s < INF)) {
+    if (improves(best, s, ring, j)) {
         best.s = s;
         best.ring = ring;
         best.fiber = j;
@@ -243,8 +248,7 @@ bool visit_shaped(Segment seg, UnitRay ur, int i, float sA, float sB, Bands band
         int kind;
         float s = curved_fiber_test(seg, ur, rest, fiber_curl_phase(seg.guide, i, j), i, vEnd, bands.eLo,
                                     a, b, kind);
-        bool tie = s == best.s && (i < best.ring || (i == best.ring && j < best.fiber));
-        if (s < best.s || (tie && s < INF)) {
+        if (improves(best, s, i, j)) {
             best.s = s;
             best.ring = i;
             best.fiber = j;
