@@ -103,7 +103,7 @@ class Param:
 def short_repr(value: Any, limit: int = 60) -> str:
     """repr() cut to a readable length: a 400-digit number in a message helps nobody."""
     text = repr(value)
-    return text if len(text) <= limit else text[:limit] + "..."
+    return text if len(text) <= limit else text[:limit - 3] + "..."
 
 
 def _fmt(x: float | None) -> str:

@@ -39,7 +39,8 @@ from typing import Any, Callable, Iterable
 import tomli_w
 
 from app.atomic import atomic_write_text
-from app.params import BY_KEY, GROUPS, SPEC, Param, ParamError, Params, max_fiber_radius, suggest
+from app.params import (BY_KEY, GROUPS, SPEC, Param, ParamError, Params, max_fiber_radius, short_repr,
+                        suggest)
 
 PRESET_VERSION = 2
 TOP_LEVEL = ("version", "name", "description")  # scalars allowed above the tables
@@ -312,8 +313,7 @@ def _combine(errors: list[PresetError]) -> PresetError:
 
 
 def _short(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= _SHORT else text[:_SHORT - 3] + "..."
+    return short_repr(value, _SHORT)
 
 
 # --------------------------------------------------------------------------------------------------
