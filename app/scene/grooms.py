@@ -17,15 +17,24 @@ from __future__ import annotations
 
 import math
 import struct
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
 
+from ..params import Params
+from .containers import Scene, orthonormal_x
+
+if TYPE_CHECKING:
+    from .groom_info import GroomScene
+
 __all__ = [
-    "FORMATS", "MAX_FILE_BYTES", "UP_CHOICES", "Groom", "GroomError", "Guides", "default_radius",
-    "guess_up", "load_groom", "parse_groom", "resample", "resample_many", "strands_to_guides", "up_rotation",
+    "FORMATS", "MAX_FILE_BYTES", "SEGMENT_TOLERANCE", "UP_CHOICES", "Groom", "GroomError", "Guides",
+    "MAX_TURN_DEG", "auto_segments", "chord_errors", "container_rows", "default_radius", "groom_scene",
+    "guess_up", "joint_turns", "load_groom",
+    "parse_groom", "resample", "resample_many", "scene_from_groom", "strands_to_guides", "up_rotation",
 ]
 
 MAX_FILE_BYTES = 2 * 1024**3
@@ -832,3 +841,265 @@ def strands_to_guides(groom: Groom, segments: int = 8, radius: float | None = No
     remap[used] = np.arange(len(used))
     labels[kept_idx] = remap[lab]
     return Guides(list(guides[used]), radii[used], dropped, labels)
+
+
+# --------------------------------------------------------------------------------------------------------
+# Scene: guides -> containers
+
+def _rotate_minimally_many(v: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``containers._rotate_minimally`` on rows: v, a, b are (S, 3); a and b unit. Same branches."""
+    c = (a * b).sum(axis=1, keepdims=True)
+    axis = np.cross(a, b)
+    s = np.linalg.norm(axis, axis=1, keepdims=True)
+    turned = s[:, 0] >= 1e-12
+    out = v.copy()
+    if turned.any():
+        ax = axis[turned] / s[turned]
+        vt, ct, st = v[turned], c[turned], s[turned]
+        out[turned] = vt * ct + np.cross(ax, vt) * st + ax * (ax * vt).sum(axis=1, keepdims=True) * (1 - ct)
+    back = ~turned & (c[:, 0] <= 0)
+    if back.any():
+        # A 180 degree turn: mirror about an axis perpendicular to a, continuous with v where possible.
+        ax = np.cross(a[back], v[back])
+        n = np.linalg.norm(ax, axis=1, keepdims=True)
+        fallback = orthonormal_x(a[back])
+        ax = np.where(n > 0, ax / np.where(n > 0, n, 1.0), fallback)
+        out[back] = 2 * (v[back] * ax).sum(axis=1, keepdims=True) * ax - v[back]
+    return out
+
+
+def _bisectors(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``containers._bisector`` on rows."""
+    n = a + b
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.where(length < 1e-9, a, n / np.where(length < 1e-9, 1.0, length))
+
+
+def container_rows(guides: np.ndarray, radii: np.ndarray, taper: float, origin: np.ndarray) -> np.ndarray:
+    """The rows ``Scene.from_polylines`` makes, for S guides of equal point count at once: (S * (M-1), 20).
+
+    ``guides`` is (S, M, 3) float64 with no zero-length piece (the caller checks). The frame, joint-plane
+    and taper arithmetic is ``containers.Scene.from_polylines`` step for step, vectorised across guides:
+    the per-segment Python loop there takes 12 s for harolongo's 63k segments, this takes a few hundredths.
+    ``tests/test_groom_render.py`` holds the two equal on real and adversarial guides.
+    """
+    from .containers import SEGMENT_FLOATS
+
+    S, M = guides.shape[:2]
+    seglen = np.linalg.norm(np.diff(guides, axis=1), axis=2)                  # (S, M-1)
+    v = np.concatenate([np.zeros((S, 1)), np.cumsum(seglen, axis=1)], axis=1) / seglen.sum(axis=1)[:, None]
+    r = np.asarray(radii, np.float64)[:, None] * (1.0 - taper * v)            # (S, M)
+    axes = np.diff(guides, axis=1) / seglen[:, :, None]                      # (S, M-1, 3)
+    rows = np.empty((S, M - 1, SEGMENT_FLOATS))
+    fx = orthonormal_x(axes[:, 0])
+    for k in range(M - 1):
+        a = axes[:, k]
+        if k > 0:
+            fx = _rotate_minimally_many(fx, axes[:, k - 1], a)
+            fx -= a * (fx * a).sum(axis=1, keepdims=True)
+            fx /= np.linalg.norm(fx, axis=1, keepdims=True)
+        rows[:, k, 0:3] = guides[:, k] - origin
+        rows[:, k, 3] = r[:, k]
+        rows[:, k, 4:7] = guides[:, k + 1] - origin
+        rows[:, k, 7] = r[:, k + 1]
+        rows[:, k, 8:11] = a if k == 0 else _bisectors(axes[:, k - 1], a)
+        rows[:, k, 11] = v[:, k]
+        rows[:, k, 12:15] = a if k == M - 2 else _bisectors(a, axes[:, k + 1])
+        rows[:, k, 15] = v[:, k + 1]
+        rows[:, k, 16:19] = fx
+        rows[:, k, 19] = np.arange(S)
+    return rows.reshape(-1, SEGMENT_FLOATS)
+
+
+SEGMENT_TOLERANCE = 0.5
+"""Automatic segment count: the guide may leave the strand it stands for by at most this fraction of the
+container radius, for 95 % of strands. Below one radius the strand stays inside its own fiber cloud; half a
+radius keeps it off the rim, where a container's outer ring is all that covers it."""
+
+MAX_TURN_DEG = 120.0
+"""Automatic segment count: no joint of any guide may turn by more than this. Neighbouring containers meet
+on the bisecting (miter) plane, which leans ``radius * tan(turn / 2)`` past the joint: 1.7 radii at 120
+degrees, but 8.6 radii at Curly_100's 167-degree fold with 3 segments, a wedge of fibers far from any
+strand. Finer guides turn less per joint."""
+
+_AUTO_SEGMENTS = (1, 2, 3, 4, 5, 6, 8, 10, 12, 16, 20, 24, 32, 40, 48, 64)
+_AUTO_SAMPLE_VERTICES = 1 << 14     # strand vertices measured per candidate count: bounds the auto search
+_ROW_CHUNK = 1 << 16                # guides turned into container rows per vectorised step
+
+
+def chord_errors(polylines: Sequence[np.ndarray], n_segments: int) -> np.ndarray:
+    """How far each polyline's vertices get from the polyline resampled to ``n_segments``: (len,) maxima."""
+    res = resample_many(polylines, n_segments)
+    counts = np.fromiter((len(q) for q in polylines), np.int64, len(polylines))
+    pts = np.concatenate([np.asarray(q, np.float64) for q in polylines])
+    sid = np.repeat(np.arange(len(polylines)), counts)
+    out = np.zeros(len(polylines))
+    step = max(1, _CHUNK_ELEMS // (4 * (n_segments + 1)))
+    for a in range(0, len(pts), step):
+        d = _point_polyline_distance(pts[a:a + step, None], res[sid[a:a + step]])[:, 0]
+        np.maximum.at(out, sid[a:a + step], d)
+    return out
+
+
+def joint_turns(guides: np.ndarray) -> np.ndarray:
+    """Turn angle in degrees at every inner joint of guides (S, M, 3): (S, M - 2)."""
+    d = np.diff(guides, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        d = d / np.linalg.norm(d, axis=2, keepdims=True)
+        c = np.nan_to_num((d[:, 1:] * d[:, :-1]).sum(axis=2), nan=1.0)
+    return np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
+
+
+def _joints_ok(polylines: Sequence[np.ndarray], n_segments: int) -> bool:
+    """Every guide resampled to ``n_segments`` has pieces of non-zero length (a strand that comes back to
+    where it was cannot be a container there) and joints within :data:`MAX_TURN_DEG`. In chunks of guides,
+    stopping at the first failure, so the search stays within bounded memory on any groom."""
+    for a in range(0, len(polylines), _ROW_CHUNK):
+        guides = resample_many(polylines[a:a + _ROW_CHUNK], n_segments)
+        if not (np.linalg.norm(np.diff(guides, axis=1), axis=2) > 0).all():
+            return False
+        if n_segments > 1 and joint_turns(guides).max() > MAX_TURN_DEG:
+            return False
+    return True
+
+
+def auto_segments(polylines: Sequence[np.ndarray], radii: np.ndarray, seed: int = 0) -> tuple[int, float, str]:
+    """(segments, p95 error in radii, reason): the fewest segments in ``_AUTO_SEGMENTS`` whose resampled
+    guides stay within :data:`SEGMENT_TOLERANCE` radii of the polylines they replace (95th percentile over
+    a seeded sample) and turn by at most :data:`MAX_TURN_DEG` at every joint (all guides). Never more than
+    the polylines' own segment count (more cannot follow them closer) nor 64; when no count meets both,
+    that cap.
+    """
+    counts = np.fromiter((len(q) for q in polylines), np.int64, len(polylines))
+    cap = int(min(64, max(1, counts.max() - 1)))
+    order = np.random.default_rng(seed).permutation(len(polylines))
+    take = order[: max(1, int(np.searchsorted(np.cumsum(counts[order]), _AUTO_SAMPLE_VERTICES, "right")))]
+    sample = [polylines[i] for i in take]
+    r = np.asarray(radii, np.float64)[take]
+    p95 = math.inf
+    for n in [c for c in _AUTO_SEGMENTS if c < cap] + [cap]:
+        p95 = float(np.percentile(chord_errors(sample, n) / r, 95))
+        if p95 > SEGMENT_TOLERANCE:
+            continue
+        if _joints_ok(polylines, n):
+            return n, p95, (f"auto: the fewest that keep 95% of {len(sample):,} sampled strands within "
+                            f"{SEGMENT_TOLERANCE} radii of their guide and every joint within {MAX_TURN_DEG:g} "
+                            f"degrees")
+    return cap, p95, (f"auto: no count up to the strands' own {cap} keeps them within {SEGMENT_TOLERANCE} "
+                      f"radii of their guide and every joint within {MAX_TURN_DEG:g} degrees, so {cap}")
+
+
+def _scene_rows(guides: np.ndarray, radii: np.ndarray, taper: float, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """float32 container rows and the float64 origin for guides (S, M, 3); ``Scene.from_polylines`` when a
+    guide has a zero-length piece (it drops those points, the vectorised path cannot)."""
+    from .containers import SEGMENT_FLOATS
+
+    lo, hi = guides.reshape(-1, 3).min(axis=0), guides.reshape(-1, 3).max(axis=0)
+    origin = 0.5 * (lo + hi)
+    S, M = guides.shape[:2]
+    with np.errstate(over="ignore", invalid="ignore"):
+        if not (np.linalg.norm(np.diff(guides, axis=1), axis=2) > 0).all():
+            rows = Scene.from_polylines(list(guides), radii, taper=taper, origin=origin).segments
+        else:
+            rows = np.empty((S * (M - 1), SEGMENT_FLOATS), np.float32)
+            for a in range(0, S, _ROW_CHUNK):
+                part = container_rows(guides[a:a + _ROW_CHUNK], radii[a:a + _ROW_CHUNK], taper, origin)
+                part[:, 19] += a
+                rows[a * (M - 1):a * (M - 1) + len(part)] = part
+    if len(rows) == 0:
+        raise GroomError(f"{name}: no usable strands: every guide comes back to its root at {M - 1} segments, "
+                         f"so no container is left; set scene.segments higher")
+    if not np.isfinite(rows).all():
+        raise GroomError(f"{name}: coordinates are too large for the renderer's float32 containers after "
+                         f"centring (extent {np.round(hi - lo, 3).tolist()}); check scene.groom_scale")
+    return rows, origin
+
+
+def groom_scene(groom: Groom, p: Params, seconds: dict[str, float] | None = None) -> "GroomScene":
+    """Containers for a loaded groom under parameters ``p`` (see :func:`scene_from_groom`)."""
+    from .containers import MAX_GUIDES
+    from .groom_info import GroomScene, GroomSource
+
+    name = groom.path.name
+    seconds = dict(seconds or {})
+    t0 = time.perf_counter()
+    given = p["scene.segments"] if p["scene.segments"] > 1 else None
+    cluster = p["scene.groom_cluster"]
+    try:
+        # Drops and the root-spacing radius; one segment is the cheapest resampling that yields them.
+        base = strands_to_guides(groom, 1, seed=p["scene.seed"])
+    except GroomError as exc:
+        raise GroomError(f"{name}: no usable strands: {str(exc).split(': ', 1)[-1]}") from None
+    kept = np.flatnonzero(base.labels >= 0)
+    floor = float(base.radii[0])
+    radius_reason = "0.75 x the median distance between neighbouring roots (scene.radius is not used for grooms)"
+    if cluster and cluster < len(kept):
+        # Cluster at the strands' own resolution; the guides are then resampled like strands would be.
+        counts = np.fromiter((len(groom.strands[i]) for i in kept), np.int64, len(kept))
+        fine_n = int(min(64, counts.max() - 1))
+        guides = strands_to_guides(groom, fine_n, cluster=cluster, seed=p["scene.seed"])
+        fine, radii = list(guides.polylines), np.asarray(guides.radii)
+        radius_reason = (f"covers 90% of each cluster's strands, at least the root-spacing radius {floor:.4g} "
+                         f"(scene.radius is not used for grooms)")
+        cluster_used = cluster
+    else:
+        fine, radii = [groom.strands[i] for i in kept], np.full(len(kept), floor)
+        cluster_used = 0
+    if len(fine) > MAX_GUIDES:
+        raise GroomError(f"{name}: {len(fine):,} guides is more than the renderer's {MAX_GUIDES:,}; set "
+                         f"scene.groom_cluster to make fewer")
+    if given:
+        n = given
+        p95 = float(np.percentile(chord_errors(fine, n) / radii, 95))
+        reason = f"scene.segments = {n}"
+    else:
+        n, p95, reason = auto_segments(fine, radii, seed=p["scene.seed"])
+        reason += " (scene.segments = 1 means auto for grooms)"
+    # Polylines that already have n segments are used as they are: resampling could only move their points.
+    same = all(len(q) == n + 1 for q in fine)
+    polylines = np.stack(fine) if same else resample_many(fine, n)
+    if same:
+        p95 = 0.0
+    native = same and not cluster_used          # the guides are the file's own vertices
+    warnings = list(groom.warnings)
+    folded = int((~(np.linalg.norm(np.diff(polylines, axis=1), axis=2) > 0).all(axis=1)).sum())
+    if folded:
+        warnings.append(f"{folded:,} guides have a zero-length piece at {n} segments (a strand that comes back "
+                        f"to where it was); those pieces make no container")
+    turns = joint_turns(polylines)
+    sharp = int((turns > MAX_TURN_DEG).sum())
+    if sharp:
+        lean = math.tan(math.radians(min(float(turns.max()), 179.0)) / 2)
+        warnings.append(f"{sharp:,} joints turn by more than {MAX_TURN_DEG:g} degrees (up to {turns.max():.0f}); "
+                        f"their containers lean up to {lean:.1f} radii past the joint")
+    seconds["guides"] = time.perf_counter() - t0
+    t1 = time.perf_counter()
+    rows, origin = _scene_rows(polylines, radii, p["scene.taper"], name)
+    seconds["containers"] = time.perf_counter() - t1
+    dropped = dict(base.dropped)
+    source = GroomSource(
+        path=groom.path, format=groom.format, strands_in_file=groom.n_strands + sum(groom.skipped.values()),
+        strands=groom.n_strands, vertices=groom.n_vertices, skipped=dict(groom.skipped), dropped=dropped,
+        up=groom.up, up_reason=groom.up_reason, scale=groom.scale, bbox=groom.bbox(), cluster=cluster_used,
+        cluster_requested=cluster,
+        guides=len(polylines), segments=n, segments_reason=reason, native=native, chord_p95=p95,
+        radius_reason=radius_reason, radii=radii, seconds=seconds, warnings=warnings,
+        max_turn=float(turns.max()) if turns.size else 0.0)
+    return GroomScene(rows, origin, groom.path.stem, len(polylines), source=source, params=p)
+
+
+def scene_from_groom(p: Params) -> "GroomScene":
+    """The scene of ``scene.groom_file``: load (``scene.groom_up``, ``scene.groom_scale``), build guides
+    (``scene.groom_cluster``, ``scene.segments``, ``scene.seed``) and containers (``scene.taper``).
+
+    Guides: one per strand, or ``scene.groom_cluster`` k-means clusters of strands (the thesis's hybrid: few
+    thick containers, many fibers each). Segments: ``scene.segments`` when it is more than 1; at 1, the
+    default, it is chosen per groom (:func:`auto_segments`), because one straight segment from root to tip
+    never contains a real strand. Guides are the file's own vertices whenever every strand already has
+    exactly that many segments. Radius: from root spacing (clusters: enough for their members);
+    ``scene.radius`` is the generators' and is not used. Raises :class:`GroomError` for anything wrong with
+    the file, including a file without one usable strand.
+    """
+    t0 = time.perf_counter()
+    groom = load_groom(p["scene.groom_file"], up=p["scene.groom_up"], scale=p["scene.groom_scale"])
+    return groom_scene(groom, p, {"load": time.perf_counter() - t0})
