@@ -193,7 +193,8 @@ def one_bad_line(draw: st.DrawFn) -> tuple[str, Param, int, str]:
     params = draw(valid_params())
     p = draw(st.sampled_from(SPEC))
     bad = draw(bad_values(p))
-    lines = dumps_preset(params).splitlines()
+    # split on newlines only: splitlines() also splits inside strings at U+2028, \x1c, \x85 ...
+    lines = dumps_preset(params).split("\n")
     start = lines.index(f"[{p.group}]")
     index = next(i for i in range(start, len(lines)) if lines[i].startswith(f"{p.name} = "))
     lines[index] = f"{p.name} = {bad}"
