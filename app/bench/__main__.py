@@ -98,7 +98,10 @@ def _main(argv: list[str] | None) -> int:
 
     from tqdm import tqdm
 
+    from .timing import with_gl
+
     start = time.perf_counter()
+    started = machine_info()          # date and commit as the run begins
     jobs = [(name, cfg) for name in names for cfg in SUITES[name].configs(level)]
     env_args = {"reps": args.reps, "warmup": args.warmup, "budget_bytes": args.explicit_budget, "level": level}
     results: dict[str, list[dict]] = {name: [] for name in names}
@@ -126,7 +129,7 @@ def _main(argv: list[str] | None) -> int:
     if not gl["renderer"]:
         _, hc = _make_env(env_args)
         gl.update(renderer=hc.renderer, version=hc.version)
-    machine = machine_info(gl["renderer"], gl["version"])
+    machine = with_gl(started, gl["renderer"], gl["version"])
     for name in names:
         report.write_suite(name, results[name], out, machine, level)
     command = "python -m app.bench " + " ".join(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))

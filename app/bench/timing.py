@@ -132,12 +132,15 @@ class Machine:
     gl_version: str
     mesa: str
     lp_num_threads: str
+    commit_end: str = ""           # HEAD when the run ended, if others committed during it
 
     def as_dict(self) -> dict:
         return asdict(self)
 
     def markdown(self) -> str:
         commit = self.commit[:12] + (" (with uncommitted changes)" if self.dirty else "")
+        if self.commit_end and self.commit_end != self.commit:
+            commit += f"; HEAD was `{self.commit_end[:12]}` when the run ended"
         return "\n".join([
             f"- date: {self.date}",
             f"- commit: `{commit}`",
@@ -172,6 +175,15 @@ def _memory() -> int:
         return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (ValueError, OSError, AttributeError):
         return 0
+
+
+def with_gl(m: Machine, gl_renderer: str, gl_version: str) -> Machine:
+    """The machine record taken at the start, completed with the GL strings and the final HEAD."""
+    from dataclasses import replace
+
+    mesa = gl_version.split("Mesa", 1)[1].strip() if "Mesa" in gl_version else ""
+    return replace(m, gl_renderer=gl_renderer, gl_version=gl_version, mesa=mesa,
+                   commit_end=_git("rev-parse", "HEAD") or "")
 
 
 def machine_info(gl_renderer: str = "", gl_version: str = "") -> Machine:
