@@ -57,6 +57,12 @@ def resolve_params(target: str | None, assignments: list[str]) -> tuple[Params, 
         raise
 
 
+def parse_budget(text: str) -> int:
+    from .bench.__main__ import parse_bytes
+
+    return parse_bytes(text)
+
+
 def parse_size(text: str) -> tuple[int, int]:
     try:
         w, h = (int(v) for v in text.lower().split("x"))
@@ -148,17 +154,31 @@ def cmd_render(args) -> int:
     kind = args.output
     t0 = time.perf_counter()
     scene = build_scene_for(p)
+    wanted = {"shaded": ("color",), "id": ("ids",), "ring": ("ids",), "depth": ("geom",),
+              "normal": ("geom",), "cost": ("cost",)}[kind]
     with create_headless() as gl:
-        renderer = Renderer(gl.ctx)
-        renderer.set_scene(scene)
         cam = Camera.from_params(p, scene)
-        wanted = {"shaded": ("color",), "id": ("ids",), "ring": ("ids",), "depth": ("geom",),
-                  "normal": ("geom",), "cost": ("cost",)}[kind]
-        frame = renderer.render_quality(p, cam, size, outputs=wanted)
+        if args.method == "explicit":
+            # the conventional baseline: every fiber stored in GPU buffers and rasterized
+            from .render.explicit import ExplicitRenderer
+
+            if kind == "cost":
+                raise UsageError("--output cost counts fiber tests of the virtual method; the explicit method "
+                                 "rasterizes and has none")
+            explicit = (ExplicitRenderer(gl.ctx, budget_bytes=args.explicit_budget) if args.explicit_budget
+                        else ExplicitRenderer(gl.ctx))
+            stats = explicit.set_scene(scene, p)
+            frame = explicit.render(p, cam, size, outputs=wanted)
+            what = f"{stats.fibers} explicit fibers in {explicit.gpu_bytes} GPU bytes"
+        else:
+            renderer = Renderer(gl.ctx)
+            renderer.set_scene(scene)
+            frame = renderer.render_quality(p, cam, size, outputs=wanted)
+            what = f"{scene.n_segments} container segments in {renderer.scene_gpu_bytes} GPU bytes"
         write_output(out, frame, kind, p)
         seconds = time.perf_counter() - t0
-        print(f"wrote {out} ({kind}, {size[0]}x{size[1]}, {p['quality.mode']} mode) from {label}: "
-              f"{scene.n_segments} container segments, {seconds:.2f} s on {gl.renderer}")
+        print(f"wrote {out} ({kind}, {size[0]}x{size[1]}, {args.method} method, {p['quality.mode']} mode) from "
+              f"{label}: {what}, {seconds:.2f} s on {gl.renderer}")
     return 0
 
 
@@ -240,6 +260,10 @@ def make_parser() -> argparse.ArgumentParser:
     r.add_argument("--size", default="640x360", help="WIDTHxHEIGHT (default 640x360)")
     r.add_argument("--output", choices=OUTPUTS, default="shaded", help="what to write (default shaded)")
     r.add_argument("-o", dest="output_file", required=True, help="output file: .png, .exr or .npy")
+    r.add_argument("--method", choices=("virtual", "explicit"), default="virtual",
+                   help="virtual fibers in containers (default) or the conventional explicit strands")
+    r.add_argument("--explicit-budget", type=parse_budget, default=None, metavar="BYTES",
+                   help="GPU bytes the explicit method may use before it refuses (default 1GiB)")
     r.set_defaults(func=cmd_render)
 
     i = sub.add_parser("info", help="containers, fibers and GPU bytes of a preset or groom")
@@ -286,6 +310,11 @@ def describe_error(e: Exception) -> str:
     from .gl.shaders import ShaderError
 
     expected = (ParamError, UsageError, GLContextError, ShaderError, FileNotFoundError, PermissionError)
+    try:
+        from .render.explicit import ExplicitBudgetError
+        expected += (ExplicitBudgetError,)
+    except ImportError:
+        pass
     try:
         from .scene.grooms import GroomError
         expected += (GroomError,)
