@@ -46,12 +46,16 @@ _TO_SINGULAR = _rotation_to_minus_z(SINGULAR_AXIS)
 
 
 def orthonormal_x(z: np.ndarray) -> np.ndarray:
-    """A unit vector perpendicular to each unit ``z`` (N,3), smooth everywhere except within about
-    1e-3 radians of ``SINGULAR_AXIS`` (see above)."""
+    """A unit vector perpendicular to each unit ``z`` (N,3), smooth everywhere but at ``SINGULAR_AXIS``
+    itself (see above); within an angle a of it, a tilt d turns the vector by at most about 2 d / a."""
     z = np.atleast_2d(np.asarray(z, np.float64))
     zr = z @ _TO_SINGULAR.T                       # rotated so the singular direction is -Z
-    one_plus = 1.0 + zr[:, 2]
-    near = one_plus < 1e-6                        # at the singular direction itself: any perpendicular
+    # 1 + z cancels near the singular direction; there 1 + z = (x^2 + y^2) / (1 - z) keeps every digit,
+    # so the basis turns smoothly (by twice the azimuth, as a field must about its singular point) all
+    # the way in, instead of switching to a fixed vector at some distance and jumping across that circle
+    xy2 = zr[:, 0] ** 2 + zr[:, 1] ** 2
+    one_plus = np.where(zr[:, 2] < 0.0, xy2 / np.maximum(1.0 - zr[:, 2], 1.0), 1.0 + zr[:, 2])
+    near = one_plus <= 0.0                        # the singular direction itself: any perpendicular
     safe = np.where(near, 1.0, one_plus)
     x = np.stack([1.0 - zr[:, 0] ** 2 / safe, -zr[:, 0] * zr[:, 1] / safe, -zr[:, 0]], axis=1)
     x = np.where(near[:, None], np.array([1.0, 0.0, 0.0]), x)
