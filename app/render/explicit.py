@@ -46,7 +46,7 @@ from ..gl.shaders import ProgramCache
 from ..params import Params
 from ..scene.containers import SEGMENT_BYTES, Scene
 from .camera import Camera
-from .renderer import MAX_RINGS, Frame, light_direction
+from .renderer import MAX_RINGS, Frame, light_direction, release_framebuffers
 
 DEFAULT_BUDGET_BYTES = 1 << 30     # 1 GiB of fiber buffers; on llvmpipe "GPU" memory is system memory
 INSTANCE_BYTES = 12                # per (segment, fiber): half4(d.xyz, t0), half t1, uint16 tint | rough
@@ -321,14 +321,7 @@ class ExplicitRenderer:
             return
         if self._parking is None:
             self._parking = self.ctx.framebuffer(self.ctx.renderbuffer((1, 1)))
-        self._parking.use()
-        for fbo in self._targets.values():
-            for a in fbo.color_attachments:
-                a.release()
-            if fbo.depth_attachment:
-                fbo.depth_attachment.release()
-            fbo.release()
-        self._targets.clear()
+        release_framebuffers(self._parking, self._targets)
 
     # --- drawing -----------------------------------------------------------------------------------
     def program(self, p: Params) -> moderngl.Program:

@@ -192,16 +192,7 @@ class Renderer:
         return self._targets[key], self._targets[key + ("resolved",)]
 
     def release_targets(self) -> None:
-        # bind a live framebuffer first: moderngl restores the previous binding after creating a
-        # framebuffer, and rebinding a released one is an invalid operation
-        self._parking.use()
-        for fbo in self._targets.values():
-            for a in fbo.color_attachments:
-                a.release()
-            if fbo.depth_attachment:
-                fbo.depth_attachment.release()
-            fbo.release()
-        self._targets.clear()
+        release_framebuffers(self._parking, self._targets)
 
     # --- drawing -----------------------------------------------------------------------------------
     def program(self, p: Params, mode: str, cost: bool, supersample: int = 1,
@@ -442,6 +433,20 @@ def draw_ranges(p: Params, scene: Scene, mode: str, rays: int = 1) -> list[tuple
 def is_shaped(p: Params) -> bool:
     """Curved fibers need the slower curved-fiber traversal; straight ones keep the fast path."""
     return p["shape.ellipsoid"] > 0 or p["shape.curl_amplitude"] > 0 or p["shape.twist"] != 0
+
+
+def release_framebuffers(parking: moderngl.Framebuffer, targets: dict) -> None:
+    """Release framebuffers and their attachments. A live ``parking`` framebuffer is bound first: moderngl
+    rebinds the current framebuffer whenever it creates one, and rebinding a released one is an invalid
+    operation that the next test or frame would inherit."""
+    parking.use()
+    for fbo in targets.values():
+        for a in fbo.color_attachments:
+            a.release()
+        if fbo.depth_attachment:
+            fbo.depth_attachment.release()
+        fbo.release()
+    targets.clear()
 
 
 def scene_gpu_bytes(scene: Scene) -> int:

@@ -1,27 +1,19 @@
 // palette.glsl: colours for the viewer's debug views, the GLSL twin of app/render/debug_views.py
 // (the command line's --output pictures), so the viewer and the CLI show the same colours.
-//   uint palette_hash(uint x)          lowbias32
 //   vec3 id_color(uvec3 id)            fiber_id_image: (guide + 1, ring, fiber) hashed; 60..255 per channel
 //   vec3 heat_color(float x)           heat(): x in [0, 1] on the 6-stop ramp (dark blue .. yellow .. red)
 //   vec3 as_uint8(vec3 c)              floor to 8 bits, as numpy's astype(uint8) truncates
 // Outputs are display values (written to an 8-bit target without conversion).
 
-uint palette_hash(uint x) {           // Chris Wellons' lowbias32 (app/reference.py: lowbias32)
-    x ^= x >> 16;
-    x *= 0x7feb352du;
-    x ^= x >> 15;
-    x *= 0x846ca68bu;
-    x ^= x >> 16;
-    return x;
-}
+#include "common/hash.glsl"
 
 vec3 as_uint8(vec3 c) {
     return floor(clamp(c, 0.0, 1.0) * 255.0) / 255.0;
 }
 
 vec3 id_color(uvec3 id) {
-    uint key = palette_hash(id.x * 73856093u ^ palette_hash(id.y * 19349663u ^ id.z)) | 1u;
-    uint h = palette_hash(key);
+    uint key = lowbias32(id.x * 73856093u ^ lowbias32(id.y * 19349663u ^ id.z)) | 1u;
+    uint h = lowbias32(key);
     vec3 byte = vec3(float(h & 0xffu), float((h >> 8) & 0xffu), float((h >> 16) & 0xffu));
     return floor(60.0 + byte * (195.0 / 255.0)) / 255.0;
 }
