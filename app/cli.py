@@ -290,8 +290,15 @@ def make_parser() -> argparse.ArgumentParser:
     return ap
 
 
+PASS_THROUGH = {"bench": cmd_bench, "export-osl": cmd_export_osl}   # they parse their own options
+
+
 def main(argv: list[str] | None = None) -> int:
-    args = make_parser().parse_args(argv)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] in PASS_THROUGH:
+        args = argparse.Namespace(func=PASS_THROUGH[argv[0]], rest=argv[1:])
+    else:
+        args = make_parser().parse_args(argv)
     try:
         return args.func(args)
     except KeyboardInterrupt:

@@ -59,7 +59,16 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
+# Reports with their own command lines: `vfiber bench extremes ...`, `vfiber bench quality ...`
+DELEGATED = {"extremes": "app.bench.extremes", "quality": "app.bench.quality"}
+
+
 def main(argv: list[str] | None = None) -> int:
+    args = list(sys.argv[1:] if argv is None else argv)
+    if args and args[0] in DELEGATED:
+        import importlib
+
+        return importlib.import_module(DELEGATED[args[0]]).main(args[1:])
     try:
         return _main(argv)
     finally:
