@@ -251,7 +251,10 @@ class Renderer:
         fibers; fast and exact: one draw unless a traversal could pass the loop budget). ``rays``: traversals
         per fragment (default: the most ``p`` can ask for). Returns the draw count."""
         vao = self._vao(prog)
-        ranges = draw_ranges(p, self.scene, mode, traversals_per_fragment(p, mode) if rays is None else rays)
+        rays = traversals_per_fragment(p, mode) if rays is None else rays
+        ranges = draw_ranges(p, self.scene, mode, rays)
+        if "uRingOrder" in prog:
+            prog["uRingOrder"].value = int(len(ranges) > 1 or needs_ring_order(p, self.scene, mode, rays))
         for start, end in ranges:
             for name in ("uBruteRange", "uFiberRange"):
                 if name in prog:
@@ -390,6 +393,28 @@ def candidate_caps(p: Params, scene: Scene) -> tuple[np.ndarray, int]:
     return caps, per_test
 
 
+def _loop_budget(p: Params, rays: int) -> int:
+    """Loop passes one traversal may spend in one draw: the budget less the shading's share and the
+    ring, arc and canary loops."""
+    return (LOOP_CAP - LOOP_HEADROOM) // max(1, rays) - (16 * p["fibers.rings"] + 16)
+
+
+def needs_ring_order(p: Params, scene: Scene, mode: str, rays: int = 1) -> bool:
+    """Whether one draw of every fiber needs the traversal's loops after the ring loop to go by ring index
+    (uRingOrder). Each lane's own order is cheaper, but then lanes of a batch can visit different rings at
+    one iteration, and the batch pays the costliest ring's candidates at every iteration: fronts and
+    first halves by ring, plus up to K times the costliest ring for the loops after (twice for curved)."""
+    if mode == "brute":
+        return False
+    caps, per_test = candidate_caps(p, scene)
+    tests = per_test * caps
+    if not is_shaped(p):
+        worst = tests.sum() + (p["fibers.rings"] + 1) * tests.max()
+    else:
+        worst = 2 * tests.sum() + 2 * p["fibers.rings"] * tests.max()
+    return bool(worst > _loop_budget(p, rays))
+
+
 def draw_ranges(p: Params, scene: Scene, mode: str, rays: int = 1) -> list[tuple[int, int]]:
     """Ranges [start, end) of a container's flat fiber numbering, one draw each, such that no SIMD batch of
     fragments passes llvmpipe's loop budget: it would stop every loop in silence and lose fibers.
@@ -400,14 +425,16 @@ def draw_ranges(p: Params, scene: Scene, mode: str, rays: int = 1) -> list[tuple
     costliest one bounds them); a curved ring on up to four arcs. Rings are packed into draws greedily, a
     ring split when it alone is too much. Every bundled layout needs one draw; 64 rings of 0.01 degree
     fibers, or curled fibers whose reach is the whole ring, need several, and the depth test keeps the
-    nearest hit across them as it does in brute mode. ``rays``: traversals per fragment."""
+    nearest hit across them as it does in brute mode. The bound holds with the loops after the ring loop in
+    ring order (uRingOrder), which ``Renderer._draw`` sets whenever there is more than one draw or
+    ``needs_ring_order``. ``rays``: traversals per fragment."""
     lay = reference.ring_layout(p)
     total = lay.fibers_per_container
     if mode == "brute":
         chunk = BRUTE_CHUNK_SHAPED if is_shaped(p) else BRUTE_CHUNK
         return [(start, min(total, start + chunk)) for start in range(0, total, chunk)]
     caps, per_test = candidate_caps(p, scene)
-    budget = (LOOP_CAP - LOOP_HEADROOM) // max(1, rays) - (16 * lay.rings + 16)   # ring, arc, canary loops
+    budget = _loop_budget(p, rays)
     visits, deepest = (2, 2) if not is_shaped(p) else (4, 0)    # per ring; per draw, at its costliest ring
     if (visits + deepest) * per_test > budget:
         raise ValueError(f"{rays} traversals per fragment leave no loop budget for one fiber test")

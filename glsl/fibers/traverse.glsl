@@ -43,6 +43,7 @@ int gSkipRing = -1;             // a shadow ray starts on this fiber: never coun
 int gSkipFiber = -1;
 uniform ivec2 uBruteRange;
 uniform ivec2 uFiberRange;      // fast, exact: test only fibers [x, y) of the container's flat numbering
+uniform int uRingOrder;         // 1: the loops after the ring loop go by ring index (renderer.py: draw_ranges)
 
 #if SHAPED
 #include "fibers/curved.glsl"
@@ -288,14 +289,16 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
             halves[nOnce++] = outer.y;
         }
     }
-    // loops over ring indices, not over this ray's list: every lane of a SIMD batch visits the same ring
-    // at the same iteration, so a batch pays each ring's candidates once per visit, whatever its lanes do
-    for (int i = 0; i < uRings; i++) {
+    // With uRingOrder these loops go over all ring indices, not over this ray's list: every lane of a SIMD
+    // batch then visits the same ring at the same iteration, and a batch pays each ring's candidates once
+    // per visit whatever its lanes do. The renderer asks for it only where the loop budget is tight: the
+    // extra iterations cost a few percent.
+    for (int i = uRingOrder != 0 ? 0 : nTwice; i < (uRingOrder != 0 ? uRings : nTwice + nOnce); i++) {
         gIters++;
         if (i < nTwice || i >= nTwice + nOnce) continue;
         if (visit_shaped(seg, ur, i, sMid, halves[i - nTwice], bands, best)) return best;
     }
-    for (int i = uRings - 1; i >= 0; i--) {
+    for (int i = uRingOrder != 0 ? uRings - 1 : nTwice - 1; i >= 0; i--) {
         gIters++;
         if (i >= nTwice) continue;
         if (visit_shaped(seg, ur, i, backs[i].x, backs[i].y, bands, best)) return best;
@@ -343,7 +346,7 @@ FiberHit traverse_fibers(Segment seg, UnitRay ur) {
     float sMid = a > 0.0 ? -dot(o2, d2) / a : ur.s0;
     if (visit_piece(seg, ur, deepest, outer.x, sMid, best)) return best;
     if (visit_piece(seg, ur, deepest, sMid, outer.y, best)) return best;
-    for (int i = K - 2; i >= 0; i--) {      // by ring index: the same ring in every lane of a SIMD batch
+    for (int i = uRingOrder != 0 ? K - 2 : deepest - 1; i >= 0; i--) {   // uRingOrder: see traverse_shaped
         gIters++;
         if (i >= deepest) continue;
         if (visit_piece(seg, ur, i, backStack[i].x, backStack[i].y, best)) return best;
