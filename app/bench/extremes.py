@@ -437,13 +437,15 @@ def case_grazing(lab: Lab) -> Case:
 def case_axis_rays(lab: Lab) -> Case:
     p = Params({"fibers.rings": 6, "fibers.phi_step": 6.0, "fibers.fiber_radius": 0.04, "fibers.length_jitter": 0.3})
     size = (33, 33) if lab.quick else (65, 65)        # odd: the centre pixel's ray is exactly on the axis
-    axes = [np.array([0, 0, 1.0]), _unit([1, 1, 1.0])] + ([] if lab.quick else [np.array([1.0, 0, 0])])
+    axes = [(np.array([0, 0, 1.0]), 0.0), (_unit([1, 1, 1.0]), 0.0), (np.array([0, 0, 1.0]), 0.6)]
+    if not lab.quick:
+        axes += [(np.array([1.0, 0, 0]), 0.0), (_unit([0.3, -0.5, 0.8]), 0.95)]
     dists = (5.0, 100.0) if lab.quick else (5.0, 100.0, 1000.0)
     tilts = (0.0, 1e-7, 1e-5, 1e-3) if lab.quick else (0.0, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3)
     bad = hits = nonfinite = holes = 0
     images, details = [], {}
-    for axis in axes:
-        scene = Scene.from_polylines([np.array([np.zeros(3), 2.0 * axis])], 1.0)
+    for axis, taper in axes:
+        scene = Scene.from_polylines([np.array([np.zeros(3), 2.0 * axis])], 1.0, taper=taper)
         lab.show(scene)
         perp = _unit(np.cross(axis, [0.3, 0.5, 0.7]))
         for dist, tilt, sign in itertools.product(dists, tilts, (1, -1)):
@@ -460,7 +462,8 @@ def case_axis_rays(lab: Lab) -> Case:
             hits += int(shown.sum())
             holes += int(((ref[..., 0] > 0) & ~f.hit).sum())
             nonfinite += f.nonfinite()
-            key = f"axis {np.round(axis, 2).tolist()} dist {dist:g} tilt {tilt:g} {'+' if sign > 0 else '-'}"
+            key = (f"axis {np.round(axis, 2).tolist()} taper {taper:g} dist {dist:g} tilt {tilt:g} "
+                   f"{'+' if sign > 0 else '-'}")
             details[key] = int(wrong.sum())
             if (wrong.any() or not images) and len(images) < 2:
                 images.append((f"6: {key}", mark(id_image(f.ids), wrong)))
@@ -478,10 +481,13 @@ AXES = {"+x": [1, 0, 0], "-x": [-1, 0, 0], "+y": [0, 1, 0], "-y": [0, -1, 0], "+
 
 
 def case_axis_aligned(lab: Lab) -> Case:
+    """A container exactly along an axis and tilted off it: the fibers that change are the ones float64
+    says move (a tilt of 1e-3 rad moves edges by a few hundredths of a pixel); a jump of the pattern
+    would change far more. Rate: the worst excess of changed pixels over float64's."""
     p = Params({"scene.generator": "single", "fibers.rings": 5, "fibers.phi_step": 6.0, "fibers.fiber_radius": 0.03})
     size = (64, 64) if lab.quick else (96, 96)
     tilts = (1e-7, 1e-5) if lab.quick else (1e-7, 1e-6, 1e-5, 1e-4, 1e-3)
-    worst_same, details, images, frame_jump = 1.0, {}, [], 0.0
+    worst, disagree, details, images, frame_jump = 0.0, 0.0, {}, [], 0.0
     for name, a in AXES.items():
         axis = np.array(a, np.float64)
         x0 = orthonormal_x(axis)[0]
@@ -491,9 +497,9 @@ def case_axis_aligned(lab: Lab) -> Case:
             scene = Scene.from_polylines([np.array([-2 * d, 2 * d])], 1.0)
             lab.show(scene)
             cam = Camera(9.0 * side + 0.3 * d, np.zeros(3), 35.0, 0.5, 30.0, up=d)
-            return lab.render(p, cam, size)
+            return lab.render(p, cam, size), reference_ids(scene, p, cam, size)[0]
 
-        base = render(axis)
+        base, ref0 = render(axis)
         for tilt in tilts:
             for k in range(3):
                 if abs(axis[k]) == 1:
@@ -502,13 +508,19 @@ def case_axis_aligned(lab: Lab) -> Case:
                 d[k] += tilt
                 d = _unit(d)
                 frame_jump = max(frame_jump, float(np.linalg.norm(orthonormal_x(d)[0] - x0)) / tilt)
-                f = render(d)
-                same = float(np.all(f.ids[..., :3] == base.ids[..., :3], -1)[base.hit | f.hit].mean())
-                details[f"{name} tilt {tilt:g} along {'xyz'[k]}"] = same
-                if same < worst_same:
-                    worst_same = same
-                    images = [(f"7: {name} tilted {tilt:g} (magenta: changed)",
-                               mark(id_image(f.ids), np.any(f.ids[..., :3] != base.ids[..., :3], -1)))]
+                f, ref = render(d)
+                shown = base.hit | f.hit | (ref0[..., 0] > 0) | (ref[..., 0] > 0)
+                moved = np.any(f.ids[..., :3] != base.ids[..., :3], -1)
+                ref_moved = np.any(ref != ref0, -1)
+                excess = float((moved & shown).sum() - (ref_moved & shown).sum()) / max(1, shown.sum())
+                wrong = float((np.any(ref != ids3(f.ids), -1) & shown).sum()) / max(1, shown.sum())
+                details[f"{name} tilt {tilt:g} along {'xyz'[k]}"] = {"changed": float(moved[shown].mean()),
+                                                                     "float64_changed": float(ref_moved[shown].mean()),
+                                                                     "differs_from_float64": wrong}
+                disagree = max(disagree, wrong)
+                if excess > worst or not images:
+                    worst = max(worst, excess)
+                    images = [(f"7: {name} tilted {tilt:g} (magenta: changed)", mark(id_image(f.ids), moved))]
     # the frame field's one singular direction: how far a 1e-7 tilt turns the frame at 1e-3 rad from it,
     # and across the circle where the basis used to switch to a fixed vector (a flip of up to 180 degrees)
     s = SINGULAR_AXIS
@@ -522,12 +534,14 @@ def case_axis_aligned(lab: Lab) -> Case:
     singular_jump = max(float(np.linalg.norm(orthonormal_x(around(edge - 1e-8, f))[0]
                                              - orthonormal_x(around(edge + 1e-8, f))[0]))
                         for f in np.linspace(0, 2 * math.pi, 64, endpoint=False))
-    return Case(7, "axis along +-X, +-Y, +-Z and 1e-7 rad off", worst_same >= 0.995 and frame_jump < 10, 1 - worst_same,
-                "hit pixels whose fiber changes when the axis tilts (worst axis and tilt)", "< 0.5%",
-                f"frame change / tilt at most {frame_jump:.2g} near the axes (smooth); about the frame field's "
-                f"one singular direction {np.round(s, 3).tolist()} the frame turns by 2x the azimuth, and across "
-                f"1.4e-3 rad from it (where it once switched) it changes by {singular_jump:.2g} (see docs/limits.md)",
-                {"same": details, "frame_lipschitz": frame_jump, "singular_jump": singular_jump}, images)
+    return Case(7, "axis along +-X, +-Y, +-Z and 1e-7 rad off", worst < 5e-3 and disagree < 5e-3 and frame_jump < 10,
+                max(worst, 0.0), "pixels whose fiber changes when the axis tilts, beyond those float64 changes "
+                "(worst axis and tilt)", "< 0.5%, and < 0.5% differ from float64",
+                f"at most {_pct(disagree)} of hit pixels differ from float64; frame change / tilt at most "
+                f"{frame_jump:.2g} near the axes (smooth); about the frame field's one singular direction "
+                f"{np.round(s, 3).tolist()} the frame turns by 2x the azimuth, and across 1.4e-3 rad from it "
+                f"(where it once switched) it changes by {singular_jump:.2g} (see docs/limits.md)",
+                {"tilts": details, "frame_lipschitz": frame_jump, "singular_jump": singular_jump}, images)
 
 
 # ---------------------------------------------------------------------------------------------------
