@@ -718,7 +718,7 @@ def case_inside(lab: Lab) -> Case:
     return Case(10, "camera inside a container; near 1e-4, far 1e6", rate < 1e-3 and nonfinite == 0 and depth_order < 1e-3,
                 rate, "hit pixels whose fiber differs from float64", "< 0.1%, no NaN",
                 f"{nonfinite} non-finite pixels; a carpet with near 1e-4 / far 1e6 names another fiber than with "
-                f"tight planes in {_pct(depth_order)} of pixels (24-bit log depth)",
+                f"tight planes in {_pct(depth_order)} of pixels (logarithmic depth)",
                 {"views": details, "depth_order": depth_order}, images)
 
 
