@@ -38,7 +38,7 @@ import numpy as np
 from .. import reference
 from ..params import SPEC, ParamError, Params, max_fiber_radius
 from ..render.camera import Camera
-from ..render.renderer import LOOP_CAP, Renderer, draw_ranges, traversals_per_fragment
+from ..render.renderer import LOOP_CAP, Renderer
 from ..scene.containers import SINGULAR_AXIS, Scene, orthonormal_x
 from ..scene.generators import build_scene, guide_polyline
 
@@ -870,7 +870,7 @@ def case_temporal(lab: Lab) -> Case:
         diffs = []
         for ch in (reference.CH_RADIAL, reference.CH_ANGULAR, reference.CH_LENGTH):
             d = np.abs(reference.thesis_random(slot, ring, ch, np.float32) - reference.thesis_random(slot, ring, ch, np.float64))
-            diffs.append(np.minimum(d, 1 - d) if False else d)
+            diffs.append(d)
         d = np.max(diffs, 0)
         flips[name] = {"gt_1e-3": float((d > 1e-3).mean()), "gt_1e-2": float((d > 1e-2).mean()),
                        "wrap_gt_0.5": float((d > 0.5).mean())}
