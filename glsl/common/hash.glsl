@@ -2,6 +2,8 @@
 //   uint  lowbias32(uint x)                        Chris Wellons' integer hash
 //   float fiber_random(uint seed, uint guide, uint ring, uint fiber, uint channel)   in [0, 1), 24 bits
 //   uint fiber_key(seed, guide, ring, fiber); float key_random(uint key, uint channel)   the same, factored
+//   uint ring_key(seed, guide, ring)      the part of fiber_key shared by one ring's fibers
+//   vec3 key_randoms(uint key)            a fiber's radial, angular and length numbers
 //   float thesis_random(float slotDeg, float ring, float channel)   fract(1207.523 * phi), thesis 3.4
 // fiber_random depends only on integers, so a fiber's numbers never change with the camera or with
 // float rounding; thesis_random is kept for fidelity to the thesis and measured against it.
@@ -23,16 +25,25 @@ uint lowbias32(uint x) {
     return x;
 }
 
-// The hash of (seed, guide, ring, fiber), computed once per fiber; each channel costs one more round.
-uint fiber_key(uint seed, uint guide, uint ring, uint fiber) {
+// The hash of (seed, guide, ring, fiber) in two parts: the ring's, shared by its fibers, then the fiber's.
+// Each channel costs one more round.
+uint ring_key(uint seed, uint guide, int ring) {
     uint h = lowbias32(seed + 0x9e3779b9u);
     h = lowbias32(h ^ guide);
-    h = lowbias32(h ^ ring);
-    return lowbias32(h ^ fiber);
+    return lowbias32(h ^ uint(ring));
+}
+
+uint fiber_key(uint seed, uint guide, uint ring, uint fiber) {
+    return lowbias32(ring_key(seed, guide, int(ring)) ^ fiber);
 }
 
 float key_random(uint key, uint channel) {
     return float(lowbias32(key ^ channel) >> 8) * (1.0 / 16777216.0);
+}
+
+// The three numbers that place a fiber: radial, angular, length.
+vec3 key_randoms(uint key) {
+    return vec3(key_random(key, CH_RADIAL), key_random(key, CH_ANGULAR), key_random(key, CH_LENGTH));
 }
 
 float fiber_random(uint seed, uint guide, uint ring, uint fiber, uint channel) {

@@ -23,23 +23,8 @@ uniform float uFiberRadius;
 uniform float uLengthJitter;
 uniform uint uSeed;
 
-// fiber_key(seed, guide, ring, j) = lowbias32(ring_key(seed, guide, ring) ^ j): the ring part is the same
-// for every fiber a traversal visits on one ring, so it is kept and reused (same values, 3 rounds fewer).
-uint gKeyGuide = 0xffffffffu;
-int gKeyRing = -1;
-uint gRingKey;
-
-uint cached_fiber_key(uint guide, int ring, int j) {
-    if (ring != gKeyRing || guide != gKeyGuide) {
-        uint h = lowbias32(uSeed + 0x9e3779b9u);
-        h = lowbias32(h ^ guide);
-        gRingKey = lowbias32(h ^ uint(ring));
-        gKeyRing = ring;
-        gKeyGuide = guide;
-    }
-    return lowbias32(gRingKey ^ uint(j));
-}
-
+// fiber_key(seed, guide, ring, j) = lowbias32(ring_key(seed, guide, ring) ^ j) (hash.glsl): a traversal
+// hashes the ring part once per arc and each fiber costs one round more.
 // The three random numbers that place a fiber: radial, angular, length.
 vec3 fiber_placement_randoms(uint guide, int ring, int j) {
 #if HASH_THESIS
@@ -48,8 +33,7 @@ vec3 fiber_placement_randoms(uint guide, int ring, int j) {
                 thesis_random(slotDeg, float(ring), float(CH_ANGULAR)),
                 thesis_random(slotDeg, float(ring), float(CH_LENGTH)));
 #else
-    uint key = cached_fiber_key(guide, ring, j);
-    return vec3(key_random(key, CH_RADIAL), key_random(key, CH_ANGULAR), key_random(key, CH_LENGTH));
+    return key_randoms(lowbias32(ring_key(uSeed, guide, ring) ^ uint(j)));
 #endif
 }
 
@@ -58,16 +42,31 @@ float fiber_curl_phase(uint guide, int ring, int j) {
     float slotDeg = degrees(uRingA[ring].z + float(j) * uRingA[ring].y);
     return thesis_random(slotDeg, float(ring), float(CH_CURL));
 #else
-    return key_random(cached_fiber_key(guide, ring, j), CH_CURL);
+    return key_random(fiber_key(uSeed, guide, uint(ring), uint(j)), CH_CURL);
 #endif
 }
 
-void fiber_center(uint guide, int ring, int j, out vec2 c, out float vEnd) {
-    vec4 A = uRingA[ring];
-    vec4 B = uRingB[ring];
-    vec3 u = fiber_placement_randoms(guide, ring, j);
+// Where fiber j of a ring sits, from its three random numbers u; A = uRingA[ring], B = uRingB[ring].
+void place_fiber(vec4 A, vec4 B, int j, vec3 u, out vec2 c, out float vEnd) {
     float radius = A.x + (2.0 * u.x - 1.0) * B.x;
     float angle = A.z + float(j) * A.y + (2.0 * u.y - 1.0) * B.y;
     c = radius * vec2(cos(angle), sin(angle));
     vEnd = 1.0 - uLengthJitter * u.z;
+}
+
+void fiber_center(uint guide, int ring, int j, out vec2 c, out float vEnd) {
+    place_fiber(uRingA[ring], uRingB[ring], j, fiber_placement_randoms(guide, ring, j), c, vEnd);
+}
+
+// The same for a traversal that holds the ring's uniforms and ring_key(uSeed, guide, ring) already.
+void fiber_center_keyed(vec4 A, vec4 B, uint ringKey, int ring, int j, out vec2 c, out float vEnd) {
+#if HASH_THESIS
+    float slotDeg = degrees(A.z + float(j) * A.y);
+    vec3 u = vec3(thesis_random(slotDeg, float(ring), float(CH_RADIAL)),
+                  thesis_random(slotDeg, float(ring), float(CH_ANGULAR)),
+                  thesis_random(slotDeg, float(ring), float(CH_LENGTH)));
+#else
+    vec3 u = key_randoms(lowbias32(ringKey ^ uint(j)));
+#endif
+    place_fiber(A, B, j, u, c, vEnd);
 }

@@ -60,20 +60,65 @@ FiberHit no_hit() {
     return h;
 }
 
+// What every fiber test of one ray shares: the ray in unit space and the reciprocals that turn the
+// per-fiber divisions into products. (llvmpipe runs a shader as SIMD lanes that execute every branch,
+// so the cost of a traversal is the instructions of its loop bodies: keep them few and branch-free.)
+struct FiberRay {
+    vec2 o2;
+    vec2 d2;
+    float invA;     // 1 / |D.xy|^2 (0 for a ray along the axis)
+    float ra;       // |D.xy| * fiber radius
+    float oz;
+    float invDz;    // 1 / D.z (0 when the ray is level)
+    float dz;
+    float s0, s1;
+    float rf2;      // fiber radius squared
+    float zScale;   // guide parameter -> local height, (h / (v1 - v0))
+};
+
+FiberRay fiber_ray(Segment seg, UnitRay ur) {
+    FiberRay fr;
+    fr.o2 = ur.O.xy;
+    fr.d2 = ur.D.xy;
+    float a = dot(fr.d2, fr.d2);
+    fr.invA = a > 0.0 ? 1.0 / a : 0.0;
+    fr.ra = sqrt(a) * uFiberRadius;
+    fr.oz = ur.O.z;
+    fr.dz = ur.D.z;
+    fr.invDz = ur.D.z != 0.0 ? 1.0 / ur.D.z : 0.0;
+    fr.s0 = ur.s0;
+    fr.s1 = ur.s1;
+    fr.rf2 = uFiberRadius * uFiberRadius;
+    fr.zScale = seg.h / (seg.v1 - seg.v0);
+    return fr;
+}
+
 // One fiber: a capped vertical cylinder of radius uFiberRadius about c, from the container's root plane
-// to the fiber's length cut, inside the container interval. Returns the entry parameter or INF.
-float fiber_test(Segment seg, UnitRay ur, vec2 c, float vEnd, out int kind) {
-    gTests++;
-    kind = 0;
-    float zc = z_cut_unit(seg, vEnd);
-    if (zc == -INF) return INF;
-    vec2 cyl = circle_interval(ur.O.xy, ur.D.xy, c, uFiberRadius);
-    vec2 z = slab(ur.O.z, ur.D.z, -INF, zc);
-    float sIn = max(max(cyl.x, z.x), ur.s0);
-    float sOut = min(min(cyl.y, z.y), ur.s1);
-    if (!(sIn <= sOut)) return INF;
-    kind = sIn == cyl.x ? 0 : (sIn == z.x ? 1 : 2);
-    return sIn;
+// to the fiber's length cut at guide parameter vEnd, inside the container interval [s0, s1]. Returns the
+// entry parameter or INF; kind: 0 through the fiber's side, 1 its tip, 2 a container boundary.
+// Roots as in circle_interval (intervals.glsl), with the discriminant factored so it never cancels.
+float fiber_entry(Segment seg, FiberRay fr, vec2 c, float vEnd, out int kind) {
+    // the length cut in unit space: none past the segment's tip end, no fiber before its root end
+    float z = (vEnd - seg.v0) * fr.zScale;
+    float zc = vEnd >= seg.v1 ? INF : z / (seg.r0 + seg.kappa * z);
+    vec2 oc = fr.o2 - c;
+    float b = dot(oc, fr.d2);
+    float cc = dot(oc, oc) - fr.rf2;
+    float crs = abs(oc.x * fr.d2.y - oc.y * fr.d2.x);
+    float disc = (fr.ra - crs) * (fr.ra + crs);
+    float q = -(b + (b >= 0.0 ? 1.0 : -1.0) * sqrt(max(disc, 0.0)));
+    float ta = q * fr.invA;
+    float tb = q != 0.0 ? cc / q : ta;
+    vec2 cyl = fr.invA > 0.0 ? vec2(min(ta, tb), max(ta, tb))
+                             : (cc <= 0.0 ? vec2(-INF, INF) : vec2(INF, -INF));   // along the axis
+    float zs = (zc - fr.oz) * fr.invDz;
+    vec2 zr = fr.dz > 0.0 ? vec2(-INF, zs) : (fr.dz < 0.0 ? vec2(zs, INF)
+            : (fr.oz <= zc ? vec2(-INF, INF) : vec2(INF, -INF)));
+    float sIn = max(max(cyl.x, zr.x), fr.s0);
+    float sOut = min(min(cyl.y, zr.y), fr.s1);
+    kind = sIn == cyl.x ? 0 : (sIn == zr.x ? 1 : 2);
+    bool hit = disc >= 0.0 && sIn <= sOut && vEnd > seg.v0;
+    return hit ? sIn : INF;
 }
 
 // Whether a hit at s on fiber (ring, j) replaces the best so far. Ties (a ray entering through a cap
@@ -84,13 +129,14 @@ bool improves(FiberHit best, float s, int ring, int j) {
     return s < best.s || (tie && s < INF);
 }
 
-void test_fiber(Segment seg, UnitRay ur, int ring, int j, inout FiberHit best) {
+void test_fiber(Segment seg, FiberRay fr, int ring, int j, inout FiberHit best) {
     if (ring == gSkipRing && j == gSkipFiber) return;
     vec2 c;
     float vEnd;
     fiber_center(seg.guide, ring, j, c, vEnd);
     int kind;
-    float s = fiber_test(seg, ur, c, vEnd, kind);
+    gTests++;
+    float s = fiber_entry(seg, fr, c, vEnd, kind);
     if (improves(best, s, ring, j)) {
         best.s = s;
         best.ring = ring;
@@ -136,38 +182,65 @@ int candidate(ivec2 run0, ivec2 run1, int dir, int t) {
     return t < run0.y ? run0.x + dir * t : run1.x + dir * (t - run0.y);
 }
 
-// Test the candidates of ring i on the piece [sA, sB] of the ray. Returns true when traversal is over.
-bool visit_piece(Segment seg, UnitRay ur, int i, float sA, float sB, inout FiberHit best) {
-    sA = max(sA, ur.s0);
-    sB = min(sB, ur.s1);
-    if (!(sA <= sB)) return false;          // this stretch lies outside the container (caps, joints)
-    if (sA >= best.s) return true;          // pieces come in ray order: nothing later can be nearer
-    ivec2 share = ring_share(i, uFiberRange);
-    if (share.x >= share.y) return false;   // none of this ring's fibers is in this draw
-    gPieces++;
-    vec2 pA = ur.O.xy + sA * ur.D.xy;
-    vec2 pB = ur.O.xy + sB * ur.D.xy;
-    // a piece can touch the axis only at one end (a ray through the axis); take the other end's angle
-    float thA = dot(pA, pA) > 0.0 ? atan(pA.y, pA.x) : atan(pB.y, pB.x);
-    float thB = dot(pB, pB) > 0.0 ? atan(pB.y, pB.x) : thA;
-    float span = wrap_pi(thB - thA);
-    vec4 ring = uRingA[i];
-    float reach = ring.w + EPS_ANGLE;
-    int n = uRingN[i].x;
-    int dir = span >= 0.0 ? 1 : -1;
-    float first = (thA - float(dir) * reach - ring.z) / ring.y;
-    float last = (thA + span + float(dir) * reach - ring.z) / ring.y;
-    int j0 = dir > 0 ? int(ceil(first)) : int(floor(first));
-    int j1 = dir > 0 ? int(floor(last)) : int(ceil(last));
-    int count = min(max(0, (j1 - j0) * dir + 1), n);
-    ivec2 run0 = candidate_run(0, j0, dir, count, n, share);
-    ivec2 run1 = candidate_run(1, j0, dir, count, n, share);
-    for (int t = 0; t < run0.y + run1.y; t++) {
-        gIters++;
-        test_fiber(seg, ur, i, candidate(run0, run1, dir, t), best);
-        if (gMode == 0 && best.s < INF) return true;   // fast: the first fiber found wins
-    }
-    return false;
+// The ray's path seen along the axis (the unit-space xy plane) is a line that passes the axis at
+// distance dist; x measures length along it from that closest point. A point at x is seen from the axis
+// at the angle thD + sigma psi, psi = atan(x, dist) rising with x, so ring boundary k (radius r_k) is
+// crossed at x = -+h_k, h_k = sqrt(r_k^2 - dist^2), and at psi = -+atan(h_k, dist): one root and one
+// atan per boundary place both arcs of a ring, front and back.
+struct RayPath {
+    float x0;       // x at s = 0
+    float sa;       // dx/ds: |D.xy| (0: the ray runs along the axis)
+    float dist;     // closest approach to the axis
+    float thD;      // angle of the closest point ...
+    float sigma;    // ... and +1 when the angle grows along the ray, -1 when it falls
+    float psi0;     // psi where the ray enters the container (s0) ...
+    float psi1;     // ... and leaves it (s1)
+};
+
+RayPath ray_path(UnitRay ur) {
+    RayPath rp;
+    vec2 o2 = ur.O.xy;
+    vec2 d2 = ur.D.xy;
+    rp.sa = length(d2);
+    // along the axis the path is a point: any line through it will do; take the one it is closest on
+    vec2 dn = rp.sa > 0.0 ? d2 / rp.sa
+            : (dot(o2, o2) > 0.0 ? normalize(vec2(-o2.y, o2.x)) : vec2(1.0, 0.0));
+    rp.x0 = dot(o2, dn);
+    float crs = o2.x * dn.y - o2.y * dn.x;
+    rp.dist = abs(crs);
+    rp.sigma = crs >= 0.0 ? 1.0 : -1.0;
+    rp.thD = atan(dn.y, dn.x) - rp.sigma * 1.57079632679;
+    rp.psi0 = atan(rp.x0 + ur.s0 * rp.sa, rp.dist);
+    rp.psi1 = atan(rp.x0 + ur.s1 * rp.sa, rp.dist);
+    return rp;
+}
+
+// The ray parameter at path position x (a ray along the axis is at x0 for every s).
+float path_s(RayPath rp, float x) {
+    if (rp.sa > 0.0) return (x - rp.x0) / rp.sa;
+    return x == rp.x0 ? 0.0 : (x > rp.x0 ? INF : -INF);
+}
+
+float boundary_radius(int k) {
+    return 1.0 - float(k) / float(uRings);
+}
+
+// (h, psi) of ring boundary k: the container's wall (k = 0) bounds nothing that [s0, s1] does not.
+vec2 boundary_crossing(RayPath rp, int k) {
+    if (k == 0) return vec2(INF, 1.57079632679);
+    float r = boundary_radius(k);
+    float h = sqrt(max(0.0, (r - rp.dist) * (r + rp.dist)));
+    return vec2(h, atan(h, rp.dist));
+}
+
+// The ring whose annulus holds the path's closest approach: the deepest the ray reaches.
+int deepest_ring(RayPath rp) {
+    int K = uRings;
+    int d = clamp(int((1.0 - rp.dist) * float(K)), 0, K - 1);
+    // settle rounding against the boundaries as boundary_crossing computes them
+    if (d < K - 1 && rp.dist < boundary_radius(d + 1)) d++;
+    if (d > 0 && !(rp.dist < boundary_radius(d))) d--;
+    return d;
 }
 
 
@@ -307,51 +380,118 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
 }
 #endif
 
+// Pieces of the ray, in the order it meets them: the front arcs of the rings it crosses twice (outer to
+// inner), the deepest ring's two halves (split at the closest approach, so no piece sweeps more than 90
+// degrees seen from the axis), then the back arcs (inner to outer; thesis 3.11 keeps them on a stack,
+// here each is recomputed from its two boundaries). One loop visits them all, so the shader holds one
+// copy of the candidate loop: a SIMD batch pays per piece for its costliest lane, not per call site.
+// With uRingOrder the loop goes by ring index, pieces 0..K-1 the fronts (or first halves) and K..2K-1
+// the backs (or second halves) of rings 0..K-1 and K-1..0: every lane of a batch visits the same ring
+// at the same iteration, and a batch pays each ring's candidates at most twice (renderer.py: draw_ranges).
+FiberHit traverse_straight(Segment seg, UnitRay ur) {
+    FiberHit best = no_hit();
+    FiberRay fr = fiber_ray(seg, ur);
+    RayPath rp = ray_path(ur);
+    int K = uRings;
+    int deepest = deepest_ring(rp);
+    bool byRing = uRingOrder != 0;
+    int pieces = byRing ? 2 * K : 2 * deepest + 2;
+    for (int p = 0; p < pieces; p++) {
+        gIters++;
+        // which ring, and which side of the closest approach
+        bool back = byRing ? p >= K : p > deepest;
+        int i = byRing ? (back ? 2 * K - 1 - p : p) : (back ? 2 * deepest + 1 - p : p);
+        if (i > deepest) continue;                      // by ring: this lane does not reach ring i
+        vec2 outer = boundary_crossing(rp, i);
+        vec2 inner = i == deepest ? vec2(0.0) : boundary_crossing(rp, i + 1);
+        float side = back ? 1.0 : -1.0;
+        float xA = back ? inner.x : -outer.x;
+        float xB = back ? outer.x : -inner.x;
+        float psiA = max(back ? inner.y : -outer.y, rp.psi0);
+        float psiB = min(back ? outer.y : -inner.y, rp.psi1);
+        float sA = max(path_s(rp, xA), ur.s0);
+        float sB = min(path_s(rp, xB), ur.s1);
+        if (!(sA <= sB)) continue;                      // this stretch lies outside the container
+        if (sA >= best.s) break;                        // pieces come in ray order: none later is nearer
+        ivec2 share = ring_share(i, uFiberRange);
+        if (share.x >= share.y) continue;               // none of this ring's fibers is in this draw
+        gPieces++;
+        // the candidates: fibers whose slot, widened by the ring's reach, meets the piece's angles
+        vec4 ring = uRingA[i];
+        vec4 ringB = uRingB[i];
+        float reach = ring.w + EPS_ANGLE;
+        int n = uRingN[i].x;
+        int dir = int(rp.sigma);
+        float first = (rp.thD + rp.sigma * (psiA - reach) - ring.z) / ring.y;
+        float last = (rp.thD + rp.sigma * (psiB + reach) - ring.z) / ring.y;
+        int j0 = dir > 0 ? int(ceil(first)) : int(floor(first));
+        int j1 = dir > 0 ? int(floor(last)) : int(ceil(last));
+        int count = min(max(0, (j1 - j0) * dir + 1), n);
+        ivec2 run0 = candidate_run(0, j0, dir, count, n, share);
+        ivec2 run1 = candidate_run(1, j0, dir, count, n, share);
+        // A hit nearer than one on candidate t lies before it along the ray, so its fiber's slot is at
+        // most two reaches further on: exact mode stops that many candidates past its latest improvement.
+        int after = int(2.0 * reach / ring.y) + 1;
+        int end = run0.y + run1.y;
+        uint ringKey = ring_key(uSeed, seg.guide, i);
+        int bestJ = -1;
+        float bestS = best.s;
+        for (int t = 0; t < end; t++) {
+            gIters++;
+            gTests++;
+            int j = candidate(run0, run1, dir, t);
+            vec2 c;
+            float vEnd;
+            fiber_center_keyed(ring, ringB, ringKey, i, j, c, vEnd);
+            int kind;
+            float s = fiber_entry(seg, fr, c, vEnd, kind);
+            if (i == gSkipRing && j == gSkipFiber) s = INF;
+            // ties go to the lower (ring, fiber), as brute force meets them (improves())
+            bool lower = bestJ >= 0 ? j < bestJ : (i < best.ring || (i == best.ring && j < best.fiber));
+            bool tie = s == bestS && s < INF && lower;
+            if (s < bestS || tie) {
+                bestS = s;
+                bestJ = j;
+                end = gMode == 0 ? t : min(end, t + 1 + after);   // fast: the first fiber found wins
+            }
+        }
+        if (bestJ >= 0) {
+            best.s = bestS;
+            best.ring = i;
+            best.fiber = bestJ;
+            if (gMode == 0) break;
+        }
+    }
+    if (best.s < INF) {
+        // the winner's centre and how the ray enters it, for shading
+        float vEnd;
+        fiber_center(seg.guide, best.ring, best.fiber, best.c, vEnd);
+        fiber_entry(seg, fr, best.c, vEnd, best.kind);
+    }
+    return best;
+}
+
 FiberHit traverse_fibers(Segment seg, UnitRay ur) {
     // radius 0 is no fiber at all (a ray through a centre would otherwise touch it), as in the reference
     if (!(uFiberRadius > 0.0)) return no_hit();
 #if SHAPED
     return traverse_shaped(seg, ur);
-#endif
+#else
+    if (gMode != 2) return traverse_straight(seg, ur);
     FiberHit best = no_hit();
-    int K = uRings;
-    if (gMode == 2) {
-    for (int i = 0; i < K; i++) {
+    FiberRay fr = fiber_ray(seg, ur);
+    for (int i = 0; i < uRings; i++) {
         gIters++;
         ivec2 nf = uRingN[i];
         int jBegin = max(0, uBruteRange.x - nf.y);
         int jEnd = min(nf.x, uBruteRange.y - nf.y);
         for (int j = jBegin; j < jEnd; j++) {
             gIters++;
-            test_fiber(seg, ur, i, j, best);
+            test_fiber(seg, fr, i, j, best);
         }
     }
     return best;
-    }
-    vec2 o2 = ur.O.xy;
-    vec2 d2 = ur.D.xy;
-    float a = dot(d2, d2);
-    vec2 backStack[MAX_RINGS];              // thesis 3.11: back arcs, pushed outer to inner
-    vec2 outer = circle_interval(o2, d2, vec2(0.0), 1.0);
-    int deepest = K - 1;
-    for (int i = 0; i < K - 1; i++) {
-        gIters++;
-        vec2 inner = circle_interval(o2, d2, vec2(0.0), 1.0 - float(i + 1) / float(K));
-        if (inner.x > inner.y) { deepest = i; break; }   // the path stays in this ring: deepest reached
-        if (visit_piece(seg, ur, i, outer.x, inner.x, best)) return best;
-        backStack[i] = vec2(inner.y, outer.y);
-        outer = inner;
-    }
-    // deepest ring: one stretch, split where the path comes closest to the axis
-    float sMid = a > 0.0 ? -dot(o2, d2) / a : ur.s0;
-    if (visit_piece(seg, ur, deepest, outer.x, sMid, best)) return best;
-    if (visit_piece(seg, ur, deepest, sMid, outer.y, best)) return best;
-    for (int i = uRingOrder != 0 ? K - 2 : deepest - 1; i >= 0; i--) {   // uRingOrder: see traverse_shaped
-        gIters++;
-        if (i >= deepest) continue;
-        if (visit_piece(seg, ur, i, backStack[i].x, backStack[i].y, best)) return best;
-    }
-    return best;
+#endif
 }
 
 // llvmpipe ends every loop of an invocation silently once the invocation has run 65,535 loop iterations
