@@ -54,15 +54,8 @@ MSAA_PATTERNS = {
 }
 MODES = {"fast": 0, "exact": 1, "brute": 2}
 
-# A unit cube as 12 triangles, wound counter-clockwise seen from outside.
-_CUBE = np.array([
-    [-1, -1, -1], [-1, 1, -1], [1, 1, -1], [-1, -1, -1], [1, 1, -1], [1, -1, -1],
-    [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, -1, 1], [1, 1, 1], [-1, 1, 1],
-    [-1, -1, -1], [1, -1, -1], [1, -1, 1], [-1, -1, -1], [1, -1, 1], [-1, -1, 1],
-    [-1, 1, -1], [-1, 1, 1], [1, 1, 1], [-1, 1, -1], [1, 1, 1], [1, 1, -1],
-    [-1, -1, -1], [-1, -1, 1], [-1, 1, 1], [-1, -1, -1], [-1, 1, 1], [-1, 1, -1],
-    [1, -1, -1], [1, 1, -1], [1, 1, 1], [1, -1, -1], [1, 1, 1], [1, -1, 1],
-], dtype=np.float32)
+# The proxy rectangle's corners as two triangles (glsl/stages/container.vert places them per segment).
+_QUAD = np.array([[0, 0], [1, 0], [1, 1], [0, 0], [1, 1], [0, 1]], dtype=np.float32)
 
 
 @dataclass
@@ -90,7 +83,7 @@ class Renderer:
         self.ctx = ctx
         self.programs = programs or ProgramCache()
         self.scene: Scene | None = None
-        self._cube = ctx.buffer(_CUBE.tobytes())
+        self._quad = ctx.buffer(_QUAD.tobytes())
         self._instances: moderngl.Buffer | None = None
         self._vaos: dict[int, moderngl.VertexArray] = {}
         self._targets: dict[tuple, moderngl.Framebuffer] = {}
@@ -110,8 +103,8 @@ class Renderer:
 
     @property
     def scene_gpu_bytes(self) -> int:
-        """Bytes of GPU buffers that hold the scene: container segments plus the shared proxy cube."""
-        return (self._instances.size if self._instances else 0) + self._cube.size
+        """Bytes of GPU buffers that hold the scene: container segments plus the shared proxy rectangle."""
+        return (self._instances.size if self._instances else 0) + self._quad.size
 
     def render_quality(self, p: Params, cam: Camera, size: tuple[int, int], *, outputs=("color",),
                        mode: str | None = None) -> Frame:
@@ -127,7 +120,7 @@ class Renderer:
         key = id(program)
         if key not in self._vaos:
             self._vaos[key] = self.ctx.vertex_array(program, [
-                (self._cube, "3f", "in_corner"),
+                (self._quad, "2f", "in_quad"),
                 (self._instances, "4f 4f 4f 4f 4f/i", "in_a", "in_b", "in_c", "in_d", "in_e"),
             ])
         return self._vaos[key]
@@ -161,7 +154,7 @@ class Renderer:
         ctx.enable(moderngl.DEPTH_TEST)
         ctx.depth_func = "1"
         self._clear_vao.render(moderngl.TRIANGLES, vertices=3)
-        self._prepare_state()
+        self.prepare_state()
 
     def _msaa_samples(self, p: Params) -> int:
         n = p["quality.msaa"]
@@ -174,12 +167,9 @@ class Renderer:
                              f"{self.ctx.max_samples} samples", key="quality.msaa")
         return n
 
-    def _prepare_state(self) -> None:
-        ctx = self.ctx
-        ctx.disable(moderngl.BLEND)
-        ctx.enable(moderngl.CULL_FACE)
-        ctx.front_face = "ccw"
-        ctx.cull_face = "front"     # draw the far faces: the image stays whole with the camera inside a box
+    def prepare_state(self) -> None:
+        """GL state of the container draws: no blending, no culling (a proxy rectangle faces either way)."""
+        self.ctx.disable(moderngl.BLEND | moderngl.CULL_FACE)
 
     def _msaa_targets(self, size: tuple[int, int], samples: int):
         key = (size, "msaa", samples)
@@ -276,7 +266,7 @@ class Renderer:
         ctx = self.ctx
         frame = Frame()
         size = (int(size[0]), int(size[1]))
-        self._prepare_state()
+        self.prepare_state()
         supersample = p["quality.supersample"] if antialias and mode != "brute" else 1
         msaa = self._msaa_samples(p) if antialias and mode != "brute" else 0
         # "draw" renders the frame without reading anything back (timing, the viewer's own display)
@@ -477,8 +467,8 @@ def release_framebuffers(parking: moderngl.Framebuffer, targets: dict) -> None:
 
 
 def scene_gpu_bytes(scene: Scene) -> int:
-    """What ``Renderer.set_scene`` allocates for ``scene``: the segments plus the shared proxy cube."""
-    return scene.nbytes + _CUBE.nbytes
+    """What ``Renderer.set_scene`` allocates for ``scene``: the segments plus the shared proxy rectangle."""
+    return scene.nbytes + _QUAD.nbytes
 
 
 def supersample_offsets(n: int) -> list[tuple[float, float]]:

@@ -71,7 +71,7 @@ class GroomScene(Scene):
 def gpu_bytes(scene: Scene, p: Params) -> dict[str, tuple[int, str]]:
     """GPU bytes of the virtual scene and of explicit stores of the same fibers, each with its formula.
 
-    ``virtual``: what ``Renderer.set_scene`` allocates (container segments plus the proxy cube).
+    ``virtual``: what ``Renderer.set_scene`` allocates (container segments plus the proxy rectangle).
     ``explicit``: ``app.render.explicit.estimate_bytes`` -- the explicit baseline's own allocation for
     exactly these fibers -- when that module is importable. ``polylines``: every fiber as a float32 xyz
     polyline through its guide's joints, the plainest explicit store (no tangents, widths or colours, so a
@@ -81,7 +81,7 @@ def gpu_bytes(scene: Scene, p: Params) -> dict[str, tuple[int, str]]:
 
     try:
         from ..render.renderer import scene_gpu_bytes
-        virtual = (scene_gpu_bytes(scene), "container segments + proxy cube (Renderer.set_scene)")
+        virtual = (scene_gpu_bytes(scene), "container segments + proxy rectangle (Renderer.set_scene)")
     except ImportError:
         virtual = (scene.nbytes, "container segments")
     _, fibers = reference.fiber_count(p, scene.n_guides)

@@ -248,9 +248,7 @@ class ViewportRenderer:
         ctx.depth_func = "1"                       # always: the clear pass writes depth 1 everywhere
         self._fullscreen(self._prog("stages/clear.frag"))
         # the renderer's own state and draw (Renderer.render minus clears and readback)
-        ctx.enable(moderngl.CULL_FACE)
-        ctx.front_face = "ccw"
-        ctx.cull_face = "front"
+        r.prepare_state()
         ctx.depth_func = "<"
         prog = r.program(p, mode, cost=False)
         r._set_uniforms(prog, p, cam, size, offset)

@@ -592,7 +592,7 @@ def _help_window(state: AppState) -> None:
         imgui.separator_text("The stats overlay")
         imgui.text_disabled("fibers: exact = whole fibers per ring summed over rings x guides; expr. 4.1 = "
                             "the thesis's sum of 360/phi_step. Scene on GPU: the container buffer plus the "
-                            "proxy cube. " + EXPLICIT_FORMULA + ". Fiber tests / covered pixel: a cost render "
+                            "proxy rectangle. " + EXPLICIT_FORMULA + ". Fiber tests / covered pixel: a cost render "
                             "(at most 640x360) after each still frame, over pixels any container covers. "
                             "Fibers ms: a GPU timer query (32-bit: past 4.29 s the wall clock is shown).")
         imgui.pop_text_wrap_pos()

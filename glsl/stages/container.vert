@@ -1,8 +1,14 @@
 #version 450 core
-// container.vert: rasterize each container segment as a tight oriented box (its proxy). The box is
-// placed camera-relative: positions are scene-relative float32 plus a float64-computed camera offset.
+// container.vert: rasterize each container segment as its proxy: the rectangle, in the image, that holds
+// the projection of the segment's bounding box, with one side along the projected axis. The fragment
+// shader does the rest and writes its own depth, so the proxy only decides which pixels run it; a screen
+// rectangle (two triangles) covers a thin container with fewer fragments and fewer 4x4 raster blocks cut
+// by triangle edges than the box's three visible faces did (llvmpipe shades a block once per triangle).
+// A box with a corner at or behind the camera plane projects to no bounded rectangle: that segment covers
+// the whole viewport instead (the camera is inside or beside it).
+// Positions are camera-relative: scene-relative float32 plus a float64-computed camera offset.
 
-in vec3 in_corner;          // unit cube corner in [-1, 1]^3
+in vec2 in_quad;            // rectangle corner in {0, 1}^2
 in vec4 in_a;               // p0.xyz, r0
 in vec4 in_b;               // p1.xyz, r1
 in vec4 in_c;               // n0.xyz, v0
@@ -11,6 +17,7 @@ in vec4 in_e;               // frame x, guide
 
 uniform vec3 uSceneFromCamera;  // scene origin minus camera position
 uniform mat4 uClipFromCamera;   // projection * view rotation (camera at the origin)
+uniform vec2 uViewport;
 
 flat out vec4 vA;
 flat out vec4 vB;
@@ -30,7 +37,30 @@ void main() {
     vSegment = gl_InstanceID;
     Segment seg = make_segment(vA, vB, vC, vD, vE);
     float r = seg.rBound * (1.0 + 4.0 * EPS_BOUND);
-    float z = mix(seg.zLo, seg.zHi, 0.5 * in_corner.z + 0.5);
-    vec3 p = seg.p0 + seg.ex * (in_corner.x * r) + seg.ey * (in_corner.y * r) + seg.ez * z;
-    gl_Position = uClipFromCamera * vec4(p, 1.0);
+    vec2 halfViewport = 0.5 * uViewport;
+    vec2 corners[8];            // the box's corners, in pixels from the viewport centre
+    bool behind = false;
+    for (int k = 0; k < 8; k++) {
+        vec3 c = vec3((k & 1) == 0 ? -r : r, (k & 2) == 0 ? -r : r, (k & 4) == 0 ? seg.zLo : seg.zHi);
+        vec4 clip = uClipFromCamera * vec4(seg.p0 + seg.ex * c.x + seg.ey * c.y + seg.ez * c.z, 1.0);
+        behind = behind || !(clip.w > 1e-6 * length(clip.xyz));
+        corners[k] = clip.xy / clip.w * halfViewport;
+    }
+    if (behind) {
+        gl_Position = vec4(in_quad * 2.0 - 1.0, 0.0, 1.0);
+        return;
+    }
+    vec2 axis = (corners[4] + corners[5] + corners[6] + corners[7]) - (corners[0] + corners[1] + corners[2] + corners[3]);
+    vec2 u = dot(axis, axis) > 1e-12 ? normalize(axis) : vec2(1.0, 0.0);
+    vec2 v = vec2(-u.y, u.x);
+    vec2 lo = vec2(3e38);
+    vec2 hi = vec2(-3e38);
+    for (int k = 0; k < 8; k++) {
+        vec2 w = vec2(dot(corners[k], u), dot(corners[k], v));
+        lo = min(lo, w);
+        hi = max(hi, w);
+    }
+    // one pixel of margin: a pixel whose centre lies outside may still send sub-pixel rays inside
+    vec2 w = mix(lo - 1.0, hi + 1.0, in_quad);
+    gl_Position = vec4((w.x * u + w.y * v) / halfViewport, 0.0, 1.0);
 }
