@@ -38,7 +38,7 @@ import numpy as np
 from .. import reference
 from ..params import SPEC, ParamError, Params, max_fiber_radius
 from ..render.camera import Camera
-from ..render.renderer import LOOP_CAP, Renderer
+from ..render.renderer import LOOP_CAP, MAX_RINGS, Renderer, ring_uniforms
 from ..scene.containers import SINGULAR_AXIS, Scene, orthonormal_x
 from ..scene.generators import build_scene, guide_polyline
 
@@ -751,7 +751,6 @@ ATTRIBUTE_VERT = "#version 450 core\nvoid main() { vec2 p = vec2((gl_VertexID <<
 def gpu_fiber_attributes(ctx: moderngl.Context, p: Params, guide: int) -> np.ndarray:
     """(fibers, 4) float32 from the shader's own layout code: centre x, y, vEnd, tint random."""
     from ..gl.shaders import ProgramCache, glsl_root
-    from ..render.renderer import MAX_RINGS
 
     lay = reference.ring_layout(p)
     total = lay.fibers_per_container
@@ -767,15 +766,9 @@ def gpu_fiber_attributes(ctx: moderngl.Context, p: Params, guide: int) -> np.nda
     finally:
         shutil.rmtree(tmp)
     K = lay.rings
-    ring_a = np.zeros((MAX_RINGS, 4), np.float32)
-    ring_b = np.zeros((MAX_RINGS, 4), np.float32)
-    ring_n = np.zeros((MAX_RINGS, 2), np.int32)
-    ring_a[:K] = np.stack([lay.rho, lay.dphi, lay.rot, lay.reach], 1)
-    ring_b[:K, 0], ring_b[:K, 1] = lay.max_dr, lay.max_dphi
-    ring_n[:K, 0], ring_n[:K, 1] = lay.n, lay.first
     first = np.full(MAX_RINGS + 1, np.iinfo(np.int32).max, np.int32)
     first[:K + 1] = np.concatenate([lay.first, [total]])
-    for name, arr in (("uRingA", ring_a), ("uRingB", ring_b), ("uRingN", ring_n), ("uFirst", first)):
+    for name, arr in (*ring_uniforms(lay).items(), ("uFirst", first)):
         if name in prog:
             prog[name].write(arr.tobytes())
     for name, value in (("uRings", K), ("uLengthJitter", lay.length_jitter), ("uSeed", lay.seed),

@@ -446,10 +446,10 @@ def _look_uniforms(p: Params, fibers_per_container: int) -> dict:
     try:
         from . import look
     except ImportError:  # an older checkout: RGB colour only, and the density the look module defines
-        return {"uBaseColor": tuple(p["look.color"]), "uExposure": p["look.exposure"],
+        return {"uBaseColor": tuple(p["look.color"]), "uExposureScale": 2.0 ** p["look.exposure"],
                 "uShadowDensity": p["look.shadow_density"],
                 "uFiberDensity": fibers_per_container / np.pi * 2.0 * p["fibers.fiber_radius"]}
-    return {"uBaseColor": look.base_color(p), "uExposure": p["look.exposure"],
+    return {"uBaseColor": look.base_color(p), "uExposureScale": 2.0 ** p["look.exposure"],
             "uShadowDensity": p["look.shadow_density"],
             "uFiberDensity": look.fiber_density(p, fibers_per_container)}
 

@@ -197,24 +197,18 @@ class Renderer:
     def _set_uniforms(self, prog: moderngl.Program, p: Params, cam: Camera, size, offset) -> None:
         lay = reference.ring_layout(p)
         K = lay.rings
-        ring_a = np.zeros((MAX_RINGS, 4), np.float32)
-        ring_b = np.zeros((MAX_RINGS, 4), np.float32)
-        ring_n = np.zeros((MAX_RINGS, 2), np.int32)
-        ring_a[:K] = np.stack([lay.rho, lay.dphi, lay.rot, lay.reach], 1)
-        ring_b[:K, 0], ring_b[:K, 1] = lay.max_dr, lay.max_dphi
-        ring_n[:K, 0], ring_n[:K, 1] = lay.n, lay.first
         w, h = size
         right, up, forward = cam.basis()
         th = math.tan(math.radians(cam.fov) / 2)
         values = {
             "uRings": K, "uFiberRadius": lay.fiber_radius, "uLengthJitter": lay.length_jitter,
             "uSeed": lay.seed, "uViewport": (w, h), "uPixelOffset": tuple(offset),
-            "uNear": cam.near, "uFar": cam.far,
+            "uNear": cam.near, "uFar": cam.far, "uDepthScale": 1.0 / math.log2(cam.far / cam.near),
             "uCamRight": tuple(right * th * w / h), "uCamUp": tuple(up * th), "uCamForward": tuple(forward),
             "uSceneFromCamera": tuple(self.scene.origin - cam.position),
             "uLightDir": tuple(light_direction(p)), "uLightIntensity": p["look.light_intensity"],
             "uAmbient": p["look.ambient"], "uBaseColor": look.base_color(p), "uRoughness": p["look.roughness"],
-            "uExposure": p["look.exposure"], "uFiberDensity": look.fiber_density(p, lay.fibers_per_container),
+            "uExposureScale": 2.0 ** p["look.exposure"], "uFiberDensity": look.fiber_density(p, lay.fibers_per_container),
             "uTintVariation": p["look.tint_variation"], "uRoughnessVariation": p["look.roughness_variation"],
             "uShadowDensity": p["look.shadow_density"],
             "uEllipsoid": p["shape.ellipsoid"], "uTwist": p["shape.twist"],
@@ -229,8 +223,7 @@ class Renderer:
         pattern = MSAA_PATTERNS.get(p["quality.msaa"])
         if pattern:
             samples[:len(pattern)] = np.array(pattern) / 16.0
-        for name, arr in (("uRingA", ring_a), ("uRingB", ring_b), ("uRingN", ring_n),
-                          ("uSampleOffsets", samples)):
+        for name, arr in (*ring_uniforms(lay).items(), ("uSampleOffsets", samples)):
             if name in prog:
                 prog[name].write(arr.tobytes())
         if "uClipFromCamera" in prog:
@@ -323,6 +316,24 @@ class Renderer:
         return frame
 
 
+EPS_ANGLE = 2e-5                        # glsl/common/epsilon.glsl
+
+
+def ring_uniforms(lay: reference.RingLayout) -> dict[str, np.ndarray]:
+    """The per-ring uniform arrays of glsl/fibers/layout.glsl, padded to MAX_RINGS. Besides the layout,
+    uRingB carries what the traversal would otherwise divide for per arc: 1 / dphi, and how many
+    candidates past an improvement can still be nearer (2 reaches, traverse.glsl)."""
+    K = lay.rings
+    ring_a = np.zeros((MAX_RINGS, 4), np.float32)
+    ring_b = np.zeros((MAX_RINGS, 4), np.float32)
+    ring_n = np.zeros((MAX_RINGS, 2), np.int32)
+    ring_a[:K] = np.stack([lay.rho, lay.dphi, lay.rot, lay.reach], 1)
+    after = np.floor(2.0 * (lay.reach + EPS_ANGLE) / lay.dphi * (1.0 + 1e-6)) + 1.0
+    ring_b[:K] = np.stack([lay.max_dr, lay.max_dphi, 1.0 / lay.dphi, after], 1)
+    ring_n[:K, 0], ring_n[:K, 1] = lay.n, lay.first
+    return {"uRingA": ring_a, "uRingB": ring_b, "uRingN": ring_n}
+
+
 def traversals_per_fragment(p: Params, mode: str) -> int:
     """The most traversals one fragment can run: a ray per supersample or MSAA sample (brute casts one),
     twice that with traced shadows (each hit sends a shadow ray through the same container)."""
@@ -343,7 +354,7 @@ def candidate_caps(p: Params, scene: Scene) -> tuple[np.ndarray, int]:
     the axis it sweeps at most acos(inner / outer). The window adds the ring's reach on either side and,
     for curved fibers, the twist over the segment."""
     lay = reference.ring_layout(p)
-    eps_angle = 2e-5                                    # glsl/common/epsilon.glsl: EPS_ANGLE
+    eps_angle = EPS_ANGLE
     K = lay.rings
     if not is_shaped(p):
         inner, outer = 1.0 - (np.arange(K) + 1.0) / K, 1.0 - np.arange(K) / K

@@ -396,15 +396,19 @@ FiberHit traverse_straight(Segment seg, UnitRay ur) {
     int deepest = deepest_ring(rp);
     bool byRing = uRingOrder != 0;
     int pieces = byRing ? 2 * K : 2 * deepest + 2;
+    // Consecutive pieces share a boundary: carry the last one crossed, so each piece places one more.
+    vec2 carried = boundary_crossing(rp, 0);
     for (int p = 0; p < pieces; p++) {
         gIters++;
         // which ring, and which side of the closest approach
         bool back = byRing ? p >= K : p > deepest;
         int i = byRing ? (back ? 2 * K - 1 - p : p) : (back ? 2 * deepest + 1 - p : p);
         if (i > deepest) continue;                      // by ring: this lane does not reach ring i
-        vec2 outer = boundary_crossing(rp, i);
-        vec2 inner = i == deepest ? vec2(0.0) : boundary_crossing(rp, i + 1);
-        float side = back ? 1.0 : -1.0;
+        bool axial = i == deepest;                       // the deepest ring: its inner edge is the axis
+        vec2 fresh = boundary_crossing(rp, back ? i : i + 1);
+        vec2 outer = back && !axial ? fresh : carried;
+        vec2 inner = axial ? vec2(0.0) : (back ? carried : fresh);
+        if (!axial) carried = fresh;
         float xA = back ? inner.x : -outer.x;
         float xB = back ? outer.x : -inner.x;
         float psiA = max(back ? inner.y : -outer.y, rp.psi0);
@@ -422,8 +426,8 @@ FiberHit traverse_straight(Segment seg, UnitRay ur) {
         float reach = ring.w + EPS_ANGLE;
         int n = uRingN[i].x;
         int dir = int(rp.sigma);
-        float first = (rp.thD + rp.sigma * (psiA - reach) - ring.z) / ring.y;
-        float last = (rp.thD + rp.sigma * (psiB + reach) - ring.z) / ring.y;
+        float first = (rp.thD + rp.sigma * (psiA - reach) - ring.z) * ringB.z;
+        float last = (rp.thD + rp.sigma * (psiB + reach) - ring.z) * ringB.z;
         int j0 = dir > 0 ? int(ceil(first)) : int(floor(first));
         int j1 = dir > 0 ? int(floor(last)) : int(ceil(last));
         int count = min(max(0, (j1 - j0) * dir + 1), n);
@@ -431,11 +435,13 @@ FiberHit traverse_straight(Segment seg, UnitRay ur) {
         ivec2 run1 = candidate_run(1, j0, dir, count, n, share);
         // A hit nearer than one on candidate t lies before it along the ray, so its fiber's slot is at
         // most two reaches further on: exact mode stops that many candidates past its latest improvement.
-        int after = int(2.0 * reach / ring.y) + 1;
+        int after = int(ringB.w);
         int end = run0.y + run1.y;
         uint ringKey = ring_key(uSeed, seg.guide, i);
         int bestJ = -1;
         float bestS = best.s;
+        vec2 bestC = vec2(0.0);
+        int bestKind = 0;
         for (int t = 0; t < end; t++) {
             gIters++;
             gTests++;
@@ -452,6 +458,8 @@ FiberHit traverse_straight(Segment seg, UnitRay ur) {
             if (s < bestS || tie) {
                 bestS = s;
                 bestJ = j;
+                bestC = c;
+                bestKind = kind;
                 end = gMode == 0 ? t : min(end, t + 1 + after);   // fast: the first fiber found wins
             }
         }
@@ -459,14 +467,10 @@ FiberHit traverse_straight(Segment seg, UnitRay ur) {
             best.s = bestS;
             best.ring = i;
             best.fiber = bestJ;
+            best.c = bestC;
+            best.kind = bestKind;
             if (gMode == 0) break;
         }
-    }
-    if (best.s < INF) {
-        // the winner's centre and how the ray enters it, for shading
-        float vEnd;
-        fiber_center(seg.guide, best.ring, best.fiber, best.c, vEnd);
-        fiber_entry(seg, fr, best.c, vEnd, best.kind);
     }
     return best;
 }
@@ -497,18 +501,22 @@ FiberHit traverse_fibers(Segment seg, UnitRay ur) {
 // llvmpipe ends every loop of an invocation silently once the invocation has run 65,535 loop iterations
 // in all (each pass through a loop header counts, a loop's final test included). The renderer splits the
 // fibers over draws so that should never happen (renderer.py: draw_ranges); should it happen anyway, a
-// loop of a length the compiler cannot know, run after the traversal, is cut short, and gIters is raised
-// to LOOP_CAP so that the iters and cost outputs say so instead of a fiber going missing in silence.
+// loop of two passes, a length the compiler cannot know, run after the traversal, stops after one, and
+// gIters is raised to LOOP_CAP so that the iters and cost outputs say so instead of a fiber going missing
+// in silence. Only the cost pass, whose outputs report it, pays for the canary: a loop costs a SIMD batch
+// at least one pass of its body even where no lane needs it.
 const int LOOP_CAP = 65535;
 
 void loop_canary() {
     int trips = 0;
-    for (int k = 0; k <= uRings; k++) trips++;
-    if (trips <= uRings) gIters = max(gIters, LOOP_CAP);
+    for (int k = 0; k < 2 + min(uRings, 0); k++) trips++;
+    if (trips < 2) gIters = max(gIters, LOOP_CAP);
 }
 
 FiberHit traverse(Segment seg, UnitRay ur) {
     FiberHit hit = traverse_fibers(seg, ur);
+#if defined(COST_PASS) && COST_PASS
     loop_canary();
+#endif
     return hit;
 }

@@ -1,5 +1,6 @@
 // container.glsl: a container segment (hair cylinder) and the projective "unit space" inside it.
 //   Segment  make_segment(vec4 a, vec4 b, vec4 c, vec4 d, vec4 e)      from the per-instance attributes
+//   pack_segment(Segment, out vec4[7]) / Segment unpack_segment(vec4[7])   as flat varyings
 //   bool     to_unit_space(Segment seg, vec3 ro, vec3 rd, float tNear, out UnitRay ur)
 //   bool     clip_to_container(Segment seg, inout UnitRay ur)     [s0, s1] of a unit-space ray
 //   float    unit_to_world_t(Segment seg, UnitRay ur, float s)
@@ -61,6 +62,38 @@ Segment make_segment(vec4 a, vec4 b, vec4 c, vec4 d, vec4 e) {
     s.rBound = max(a.w, b.w);
     s.zLo = -s.rBound * joint_slope(s.n0);
     s.zHi = s.h + s.rBound * joint_slope(s.n1);
+    return s;
+}
+
+// A segment as seven vec4s, so container.vert builds it once per vertex and the fragment shader only
+// unpacks it (flat varyings): p0 h | ex r0 | ey kappa | ez v0 | n0 v1 | n1 guide | zLo zHi rBound -.
+void pack_segment(Segment s, out vec4 q[7]) {
+    q[0] = vec4(s.p0, s.h);
+    q[1] = vec4(s.ex, s.r0);
+    q[2] = vec4(s.ey, s.kappa);
+    q[3] = vec4(s.ez, s.v0);
+    q[4] = vec4(s.n0, s.v1);
+    q[5] = vec4(s.n1, uintBitsToFloat(s.guide));
+    q[6] = vec4(s.zLo, s.zHi, s.rBound, 0.0);
+}
+
+Segment unpack_segment(vec4 q[7]) {
+    Segment s;
+    s.p0 = q[0].xyz;
+    s.h = q[0].w;
+    s.ex = q[1].xyz;
+    s.r0 = q[1].w;
+    s.ey = q[2].xyz;
+    s.kappa = q[2].w;
+    s.ez = q[3].xyz;
+    s.v0 = q[3].w;
+    s.n0 = q[4].xyz;
+    s.v1 = q[4].w;
+    s.n1 = q[5].xyz;
+    s.guide = floatBitsToUint(q[5].w);
+    s.zLo = q[6].x;
+    s.zHi = q[6].y;
+    s.rBound = q[6].z;
     return s;
 }
 

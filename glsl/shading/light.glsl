@@ -5,10 +5,10 @@
 uniform vec3 uLightDir;         // toward the light, world
 uniform float uLightIntensity;
 uniform float uAmbient;
-uniform float uExposure;        // stops
+uniform float uExposureScale;   // 2^exposure stops (computed once by the renderer, not per fragment)
 
 vec3 tone_map(vec3 c) {
-    c *= exp2(uExposure);
+    c *= uExposureScale;
     c = c / (1.0 + c);                              // Reinhard: highlights roll off instead of clipping
     return pow(clamp(c, 0.0, 1.0), vec3(1.0 / 2.2));
 }

@@ -11,11 +11,7 @@
 #include "shading/kajiya_kay.glsl"
 #include "shading/marschner.glsl"
 
-flat in vec4 vA;
-flat in vec4 vB;
-flat in vec4 vC;
-flat in vec4 vD;
-flat in vec4 vE;
+flat in vec4 vSeg[7];       // the segment, packed by container.vert
 flat in int vSegment;
 
 uniform vec3 uCamRight;         // world-space camera basis, scaled by tan(fov/2) (and aspect)
@@ -24,7 +20,6 @@ uniform vec3 uCamForward;
 uniform vec2 uViewport;
 uniform vec2 uPixelOffset;      // sub-pixel offset of the ray (antialiasing, stability tests)
 uniform float uNear;
-uniform float uFar;
 uniform vec3 uBaseColor;        // linear; from RGB or from melanin (app/render/look.py)
 uniform float uRoughness;
 uniform float uTintVariation;
@@ -66,6 +61,14 @@ struct Shaded {
     vec3 N;
     uvec4 id;
 };
+
+// Depth of the hit, logarithmic in the distance so near 1e-4 and far 1e6 both resolve: 0 at uNear, 1 at
+// the camera's far plane. One log2 per fragment: uDepthScale = 1 / log2(far / near), from the renderer.
+uniform float uDepthScale;
+
+float log_depth(float t) {
+    return clamp(log2(max(t, uNear) / uNear) * uDepthScale, 0.0, 1.0);
+}
 
 vec3 view_ray(vec2 offset) {
     vec2 ndc = (gl_FragCoord.xy + offset) / uViewport * 2.0 - 1.0;
@@ -172,7 +175,7 @@ Shaded trace_and_shade(Segment seg, vec3 rd, bool shade) {
 }
 
 void main() {
-    Segment seg = make_segment(vA, vB, vC, vD, vE);
+    Segment seg = unpack_segment(vSeg);
 #if COST_PASS
     UnitRay ur;
     if (!to_unit_space(seg, vec3(0.0), view_ray(uPixelOffset), uNear, ur)) discard;
@@ -193,7 +196,7 @@ void main() {
     }
     if (mask == 0) discard;
     gl_SampleMask[0] = mask & gl_SampleMaskIn[0];
-    gl_FragDepth = clamp(log(max(best.t, uNear) / uNear) / log(uFar / uNear), 0.0, 1.0);
+    gl_FragDepth = log_depth(best.t);
     outColor = vec4(best.color, 1.0);
 #else
     // SUPERSAMPLE x SUPERSAMPLE stratified rays; the nearest hit names the pixel's fiber and depth
@@ -212,7 +215,7 @@ void main() {
     }
     if (hits == 0) discard;
     // the true depth of the fiber inside the container (logarithmic: near 1e-4 and far 1e6 both work)
-    gl_FragDepth = clamp(log(max(nearest.t, uNear) / uNear) / log(uFar / uNear), 0.0, 1.0);
+    gl_FragDepth = log_depth(nearest.t);
     float coverage = float(hits) / float(SUPERSAMPLE * SUPERSAMPLE);
     outColor = vec4(sum / float(SUPERSAMPLE * SUPERSAMPLE), coverage);
     outId = nearest.id;

