@@ -153,9 +153,8 @@ float wrap_pi(float a) {
 // The share [lo, hi) of ring i's fibers this draw tests: the renderer splits the fibers over draws when
 // one traversal could otherwise pass llvmpipe's loop budget (renderer.py: draw_ranges); unset, all.
 ivec2 ring_share(int i, ivec2 range) {
-    int n = uRingN[i].x;
-    if (range.y <= range.x) return ivec2(0, n);
-    return clamp(range - uRingN[i].y, 0, n);
+    ivec2 nf = uRingN[i];
+    return range.y <= range.x ? ivec2(0, nf.x) : clamp(range - nf.y, 0, nf.x);
 }
 
 // The candidates j0, j0 + dir, ... (count <= n of them, taken mod n) are at most two runs j = base + dir k,
@@ -166,13 +165,8 @@ ivec2 candidate_run(int r, int j0, int dir, int count, int n, ivec2 share) {
     int base = r == 0 ? m0 : m0 - dir * n;
     int kA = r == 0 ? 0 : wrapK;
     int kB = r == 0 ? min(count, wrapK) : count;
-    if (dir > 0) {
-        kA = max(kA, share.x - base);
-        kB = min(kB, share.y - base);
-    } else {
-        kA = max(kA, base - share.y + 1);
-        kB = min(kB, base - share.x + 1);
-    }
+    kA = max(kA, dir > 0 ? share.x - base : base - share.y + 1);
+    kB = min(kB, dir > 0 ? share.y - base : base - share.x + 1);
     return ivec2(base + dir * kA, max(0, kB - kA));
 }
 
@@ -217,8 +211,8 @@ RayPath ray_path(UnitRay ur) {
 
 // The ray parameter at path position x (a ray along the axis is at x0 for every s).
 float path_s(RayPath rp, float x) {
-    if (rp.sa > 0.0) return (x - rp.x0) / rp.sa;
-    return x == rp.x0 ? 0.0 : (x > rp.x0 ? INF : -INF);
+    float along = x == rp.x0 ? 0.0 : (x > rp.x0 ? INF : -INF);
+    return rp.sa > 0.0 ? (x - rp.x0) / rp.sa : along;
 }
 
 float boundary_radius(int k) {
@@ -227,10 +221,9 @@ float boundary_radius(int k) {
 
 // (h, psi) of ring boundary k: the container's wall (k = 0) bounds nothing that [s0, s1] does not.
 vec2 boundary_crossing(RayPath rp, int k) {
-    if (k == 0) return vec2(INF, 1.57079632679);
     float r = boundary_radius(k);
     float h = sqrt(max(0.0, (r - rp.dist) * (r + rp.dist)));
-    return vec2(h, atan(h, rp.dist));
+    return k == 0 ? vec2(INF, 1.57079632679) : vec2(h, atan(h, rp.dist));
 }
 
 // The ring whose annulus holds the path's closest approach: the deepest the ray reaches.
@@ -238,8 +231,8 @@ int deepest_ring(RayPath rp) {
     int K = uRings;
     int d = clamp(int((1.0 - rp.dist) * float(K)), 0, K - 1);
     // settle rounding against the boundaries as boundary_crossing computes them
-    if (d < K - 1 && rp.dist < boundary_radius(d + 1)) d++;
-    if (d > 0 && !(rp.dist < boundary_radius(d))) d--;
+    d += d < K - 1 && rp.dist < boundary_radius(d + 1) ? 1 : 0;
+    d -= d > 0 && !(rp.dist < boundary_radius(d)) ? 1 : 0;
     return d;
 }
 
@@ -395,7 +388,10 @@ FiberHit traverse_straight(Segment seg, UnitRay ur) {
     int K = uRings;
     int deepest = deepest_ring(rp);
     bool byRing = uRingOrder != 0;
-    int pieces = byRing ? 2 * K : 2 * deepest + 2;
+    // nothing to visit for a ray that misses the container, or for fibers of radius 0 (no fiber at all:
+    // a ray through a centre would otherwise touch it), as in the reference
+    bool any = ur.s0 <= ur.s1 && uFiberRadius > 0.0;
+    int pieces = !any ? 0 : (byRing ? 2 * K : 2 * deepest + 2);
     // Consecutive pieces share a boundary: carry the last one crossed, so each piece places one more.
     vec2 carried = boundary_crossing(rp, 0);
     for (int p = 0; p < pieces; p++) {
@@ -403,23 +399,25 @@ FiberHit traverse_straight(Segment seg, UnitRay ur) {
         // which ring, and which side of the closest approach
         bool back = byRing ? p >= K : p > deepest;
         int i = byRing ? (back ? 2 * K - 1 - p : p) : (back ? 2 * deepest + 1 - p : p);
-        if (i > deepest) continue;                      // by ring: this lane does not reach ring i
-        bool axial = i == deepest;                       // the deepest ring: its inner edge is the axis
+        // (no `continue`: each would add a lane mask to every later assignment; a piece with nothing to
+        // do gets no candidates instead)
+        bool reached = i <= deepest;                    // by ring: lanes that do not reach ring i skip it
+        bool axial = i == deepest;                      // the deepest ring: its inner edge is the axis
         vec2 fresh = boundary_crossing(rp, back ? i : i + 1);
         vec2 outer = back && !axial ? fresh : carried;
         vec2 inner = axial ? vec2(0.0) : (back ? carried : fresh);
-        if (!axial) carried = fresh;
+        carried = reached && !axial ? fresh : carried;
         float xA = back ? inner.x : -outer.x;
         float xB = back ? outer.x : -inner.x;
         float psiA = max(back ? inner.y : -outer.y, rp.psi0);
         float psiB = min(back ? outer.y : -inner.y, rp.psi1);
         float sA = max(path_s(rp, xA), ur.s0);
         float sB = min(path_s(rp, xB), ur.s1);
-        if (!(sA <= sB)) continue;                      // this stretch lies outside the container
-        if (sA >= best.s) break;                        // pieces come in ray order: none later is nearer
+        bool inside = reached && sA <= sB;             // else the stretch lies outside the container
+        if (inside && sA >= best.s) break;              // pieces come in ray order: none later is nearer
         ivec2 share = ring_share(i, uFiberRange);
-        if (share.x >= share.y) continue;               // none of this ring's fibers is in this draw
-        gPieces++;
+        bool open = inside && share.x < share.y;        // else none of this ring's fibers is in this draw
+        gPieces += open ? 1 : 0;
         // the candidates: fibers whose slot, widened by the ring's reach, meets the piece's angles
         vec4 ring = uRingA[i];
         vec4 ringB = uRingB[i];
@@ -436,7 +434,7 @@ FiberHit traverse_straight(Segment seg, UnitRay ur) {
         // A hit nearer than one on candidate t lies before it along the ray, so its fiber's slot is at
         // most two reaches further on: exact mode stops that many candidates past its latest improvement.
         int after = int(ringB.w);
-        int end = run0.y + run1.y;
+        int end = open ? run0.y + run1.y : 0;
         uint ringKey = ring_key(uSeed, seg.guide, i);
         int bestJ = -1;
         float bestS = best.s;
@@ -455,33 +453,32 @@ FiberHit traverse_straight(Segment seg, UnitRay ur) {
             // ties go to the lower (ring, fiber), as brute force meets them (improves())
             bool lower = bestJ >= 0 ? j < bestJ : (i < best.ring || (i == best.ring && j < best.fiber));
             bool tie = s == bestS && s < INF && lower;
-            if (s < bestS || tie) {
-                bestS = s;
-                bestJ = j;
-                bestC = c;
-                bestKind = kind;
-                end = gMode == 0 ? t : min(end, t + 1 + after);   // fast: the first fiber found wins
-            }
+            bool better = s < bestS || tie;
+            bestS = better ? s : bestS;
+            bestJ = better ? j : bestJ;
+            bestC = better ? c : bestC;
+            bestKind = better ? kind : bestKind;
+            // fast: the first fiber found wins
+            end = !better ? end : (gMode == 0 ? t : min(end, t + 1 + after));
         }
-        if (bestJ >= 0) {
-            best.s = bestS;
-            best.ring = i;
-            best.fiber = bestJ;
-            best.c = bestC;
-            best.kind = bestKind;
-            if (gMode == 0) break;
-        }
+        bool found = bestJ >= 0;
+        best.s = found ? bestS : best.s;
+        best.ring = found ? i : best.ring;
+        best.fiber = found ? bestJ : best.fiber;
+        best.c = found ? bestC : best.c;
+        best.kind = found ? bestKind : best.kind;
+        if (gMode == 0 && found) break;
     }
     return best;
 }
 
 FiberHit traverse_fibers(Segment seg, UnitRay ur) {
-    // radius 0 is no fiber at all (a ray through a centre would otherwise touch it), as in the reference
-    if (!(uFiberRadius > 0.0)) return no_hit();
 #if SHAPED
+    if (!(uFiberRadius > 0.0) || !(ur.s0 <= ur.s1)) return no_hit();    // see traverse_straight
     return traverse_shaped(seg, ur);
 #else
     if (gMode != 2) return traverse_straight(seg, ur);
+    if (!(uFiberRadius > 0.0) || !(ur.s0 <= ur.s1)) return no_hit();
     FiberHit best = no_hit();
     FiberRay fr = fiber_ray(seg, ur);
     for (int i = 0; i < uRings; i++) {

@@ -101,16 +101,14 @@ Segment unpack_segment(vec4 q[7]) {
 void clip_half_space(vec3 O, vec3 D, vec3 m, float c, inout float s0, inout float s1) {
     float mo = dot(O, m) - c;
     float md = dot(D, m);
-    if (md == 0.0) {
-        if (mo > 0.0) s1 = -INF;
-        return;
-    }
-    float tp = -mo / md;
-    if (md < 0.0) s0 = max(s0, tp); else s1 = min(s1, tp);
+    float tp = -mo / md;                        // unused where md == 0 (parallel: all or nothing)
+    s0 = md < 0.0 ? max(s0, tp) : s0;
+    s1 = md > 0.0 ? min(s1, tp) : (md == 0.0 && mo > 0.0 ? -INF : s1);
 }
 
 bool clip_to_container(Segment seg, inout UnitRay ur);
 
+// On a miss ur stays finite with an empty [s0, s1] (s0 = INF), so callers may go on without a branch.
 bool to_unit_space(Segment seg, vec3 ro, vec3 rd, float tNear, out UnitRay ur) {
     mat3 localFromWorld = transpose(mat3(seg.ex, seg.ey, seg.ez));
     vec3 o = localFromWorld * (ro - seg.p0);
@@ -121,16 +119,19 @@ bool to_unit_space(Segment seg, vec3 ro, vec3 rd, float tNear, out UnitRay ur) {
     vec2 z = slab(o.z, d.z, seg.zLo, seg.zHi);
     float tb0 = max(max(c.x, z.x), tNear);
     float tb1 = min(c.y, z.y);
-    if (!(tb0 <= tb1)) return false;
-    ur.tb = tb0;
-    ur.o = o + tb0 * d;
+    bool bounded = tb0 <= tb1;
+    ur.tb = bounded ? tb0 : tNear;
+    ur.o = bounded ? o + tb0 * d : vec3(0.0);
     ur.d = d;
     ur.wO = seg.r0 + seg.kappa * ur.o.z;
     ur.O = ur.o / ur.wO;
     vec3 D = d * ur.wO - ur.o * (seg.kappa * d.z);
     ur.Dlen = length(D);
     ur.D = D / ur.Dlen;
-    return clip_to_container(seg, ur);
+    bool inside = clip_to_container(seg, ur) && bounded;
+    ur.s0 = inside ? ur.s0 : INF;
+    ur.s1 = inside ? ur.s1 : -INF;
+    return inside;
 }
 
 // The stretch [s0, s1] (s >= 0) of the unit-space ray O + s D inside the container: unit cylinder,

@@ -8,26 +8,27 @@
 // Stable roots (pbrt): q = -(b + sign(b) sqrt(disc)), t0 = q / a, t1 = c / q, with the discriminant
 // a r^2 - cross^2 factored as (sqrt(a) r - |cross|)(sqrt(a) r + |cross|) so it never cancels. A ray
 // parallel to the axis (a = 0) is inside for every t or for none.
+// Written without early returns: llvmpipe runs both sides of every branch anyway, and code after a
+// return becomes a masked block whose every assignment costs a blend.
 vec2 circle_interval(vec2 o, vec2 d, vec2 c, float r) {
     vec2 oc = o - c;
     float a = dot(d, d);
     float b = dot(oc, d);
     float len = length(oc);
     float cc = (len - r) * (len + r);
-    if (a == 0.0) return cc <= 0.0 ? vec2(-INF, INF) : vec2(INF, -INF);
     float cross2 = abs(oc.x * d.y - oc.y * d.x);
     float ra = sqrt(a) * r;
     float disc = (ra - cross2) * (ra + cross2);
-    if (disc < 0.0) return vec2(INF, -INF);
-    float q = -(b + (b >= 0.0 ? 1.0 : -1.0) * sqrt(disc));
+    float q = -(b + (b >= 0.0 ? 1.0 : -1.0) * sqrt(max(disc, 0.0)));
     float ta = q / a;
     float tb = q != 0.0 ? cc / q : ta;
-    return vec2(min(ta, tb), max(ta, tb));
+    vec2 along = cc <= 0.0 ? vec2(-INF, INF) : vec2(INF, -INF);    // parallel to the axis
+    return a == 0.0 ? along : (disc < 0.0 ? vec2(INF, -INF) : vec2(min(ta, tb), max(ta, tb)));
 }
 
 vec2 slab(float o, float d, float lo, float hi) {
-    if (d == 0.0) return (o >= lo && o <= hi) ? vec2(-INF, INF) : vec2(INF, -INF);
     float ta = (lo - o) / d;
     float tb = (hi - o) / d;
-    return vec2(min(ta, tb), max(ta, tb));
+    vec2 along = (o >= lo && o <= hi) ? vec2(-INF, INF) : vec2(INF, -INF);    // d == 0
+    return d == 0.0 ? along : vec2(min(ta, tb), max(ta, tb));
 }

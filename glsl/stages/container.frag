@@ -93,17 +93,21 @@ float light_transmittance(Segment seg, UnitRay ur, FiberHit hit, vec3 L) {
     // Light leaves through the side wall, or past the guide's root or tip. A joint between two segments
     // is no boundary for light: stopping there would band every segment (the next one's fibers shade too).
     vec2 wall = circle_interval(sr.O.xy, sr.D.xy, vec2(0.0), 1.0);
-    sr.s0 = 0.0;
-    sr.s1 = wall.y;
-    if (seg.v0 <= 0.0) clip_half_space(sr.O, sr.D, -seg.r0 * seg.n0, 0.0, sr.s0, sr.s1);
-    if (seg.v1 >= 1.0)
-        clip_half_space(sr.O, sr.D, seg.r0 * seg.n1 + vec3(0.0, 0.0, seg.n1.z * seg.h * seg.kappa),
-                        seg.n1.z * seg.h, sr.s0, sr.s1);
-    if (!(sr.s0 <= sr.s1)) return 1.0;
+    // (root and tip planes clipped into copies and selected: no branch, see intervals.glsl)
+    vec2 root = vec2(0.0, wall.y);
+    clip_half_space(sr.O, sr.D, -seg.r0 * seg.n0, 0.0, root.x, root.y);
+    vec2 s = seg.v0 <= 0.0 ? root : vec2(0.0, wall.y);
+    vec2 tip = s;
+    clip_half_space(sr.O, sr.D, seg.r0 * seg.n1 + vec3(0.0, 0.0, seg.n1.z * seg.h * seg.kappa),
+                    seg.n1.z * seg.h, tip.x, tip.y);
+    s = seg.v1 >= 1.0 ? tip : s;
+    sr.s0 = s.x;
+    sr.s1 = s.y;
 #if SHADOW_MODE == 1
     // density estimate: fibers as a uniform medium along the path to the container's surface
-    return exp(-uShadowDensity * uFiberDensity * sr.s1);
+    return sr.s0 <= sr.s1 ? exp(-uShadowDensity * uFiberDensity * sr.s1) : 1.0;
 #else
+    if (!(sr.s0 <= sr.s1)) return 1.0;
     // traced: the same traversal, any fiber on the way blocks the light
     int mode = gMode;
     gMode = 0;
@@ -118,31 +122,27 @@ float light_transmittance(Segment seg, UnitRay ur, FiberHit hit, vec3 L) {
 #endif
 }
 
+// No early returns: a ray that misses still runs every statement (llvmpipe executes both sides of a
+// branch anyway, and code after a return would pay a blend per assignment); o.hit says what counts.
 Shaded trace_and_shade(Segment seg, vec3 rd, bool shade) {
     Shaded o;
-    o.hit = false;
     UnitRay ur;
-    if (!to_unit_space(seg, vec3(0.0), rd, uNear, ur)) return o;
+    to_unit_space(seg, vec3(0.0), rd, uNear, ur);   // a miss leaves [s0, s1] empty: traverse finds nothing
     FiberHit hit = traverse(seg, ur);
-    if (hit.s >= INF) return o;
-    o.hit = true;
+    o.hit = hit.s < INF;
+    hit.s = o.hit ? hit.s : 0.0;                // keep the arithmetic below finite on a miss
     o.t = unit_to_world_t(seg, ur, hit.s);
     o.id = uvec4(seg.guide + 1u, uint(hit.ring), uint(hit.fiber), uint(vSegment));
 
     vec3 P = ur.O + hit.s * ur.D;               // unit space
-    vec3 nLocal;
-    if (hit.kind == 0) {
-        vec2 radial = P.xy - hit.c;
-        nLocal = vec3(radial, -seg.kappa * dot(radial, P.xy));
-    } else if (hit.kind == 1) {
-        nLocal = vec3(0.0, 0.0, 1.0);
-    } else {
-        nLocal = -ur.d;                          // a fiber cut by a cap or joint: its section faces us
-    }
+    // the side of a fiber; its cut tip; a fiber cut by a cap or joint (its section faces us)
+    vec2 radial = P.xy - hit.c;
+    vec3 nLocal = hit.kind == 0 ? vec3(radial, -seg.kappa * dot(radial, P.xy))
+                : (hit.kind == 1 ? vec3(0.0, 0.0, 1.0) : -ur.d);
     mat3 worldFromLocal = mat3(seg.ex, seg.ey, seg.ez);
     vec3 N = normalize(worldFromLocal * nLocal);
     vec3 V = -rd;
-    if (dot(N, V) < 0.0) N = -N;
+    N = dot(N, V) < 0.0 ? -N : N;
     o.N = N;
     if (!shade) return o;
 
@@ -198,6 +198,15 @@ void main() {
     gl_SampleMask[0] = mask & gl_SampleMaskIn[0];
     gl_FragDepth = log_depth(best.t);
     outColor = vec4(best.color, 1.0);
+#elif SUPERSAMPLE == 1
+    // One ray per pixel, written out without a loop: llvmpipe runs every statement inside a loop under
+    // lane masks (a blend per assignment), even a loop of one pass.
+    Shaded s = trace_and_shade(seg, view_ray(uPixelOffset), true);
+    if (!s.hit) discard;
+    gl_FragDepth = log_depth(s.t);
+    outColor = vec4(s.color, 1.0);
+    outId = s.id;
+    outGeom = vec4(s.N, s.t);
 #else
     // SUPERSAMPLE x SUPERSAMPLE stratified rays; the nearest hit names the pixel's fiber and depth
     vec3 sum = vec3(0.0);
