@@ -46,7 +46,7 @@ from ..gl.shaders import ProgramCache
 from ..params import Params
 from ..scene.containers import SEGMENT_BYTES, Scene
 from .camera import Camera
-from .renderer import MAX_RINGS, Frame, light_direction, release_framebuffers
+from .renderer import MAX_RINGS, Frame, clear_targets, light_direction, release_framebuffers
 
 DEFAULT_BUDGET_BYTES = 1 << 30     # 1 GiB of fiber buffers; on llvmpipe "GPU" memory is system memory
 INSTANCE_BYTES = 12                # per (segment, fiber): half4(d.xyz, t0), half t1, uint16 tint | rough
@@ -272,7 +272,6 @@ class ExplicitRenderer:
         self._fibers: moderngl.Buffer | None = None
         self._vaos: dict[int, moderngl.VertexArray] = {}
         self._targets: dict[tuple, moderngl.Framebuffer] = {}
-        self._clear_vao: moderngl.VertexArray | None = None
         # bound while targets are released: moderngl restores the previous binding after creating a
         # framebuffer, and rebinding a released one is an invalid operation
         self._parking: moderngl.Framebuffer | None = None
@@ -403,7 +402,7 @@ class ExplicitRenderer:
         fbo = self._target(size)
         fbo.use()
         ctx.viewport = (0, 0) + size
-        self._clear()
+        clear_targets(fbo)
         ctx.disable(moderngl.BLEND)
         ctx.disable(moderngl.CULL_FACE)
         ctx.enable(moderngl.DEPTH_TEST)
@@ -423,18 +422,6 @@ class ExplicitRenderer:
         if "geom" in outputs:
             frame.geom = _read(fbo, 2, "f4", size)
         return frame
-
-    def _clear(self) -> None:
-        """Zero colour, ids and geometry and set depth to 1 in one fullscreen pass, as the virtual renderer
-        does (glClear is undefined on integer attachments; uploading zeros costs tens of ms)."""
-        ctx = self.ctx
-        if self._clear_vao is None:
-            prog = self.programs.get(ctx, "stages/fullscreen.vert", "stages/clear.frag")
-            self._clear_vao = ctx.vertex_array(prog, [])
-        ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
-        ctx.enable(moderngl.DEPTH_TEST)
-        ctx.depth_func = "1"
-        self._clear_vao.render(moderngl.TRIANGLES, vertices=3)
 
 
 SHADING_MODELS = {"kajiya_kay": 0, "marschner": 1}

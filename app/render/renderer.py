@@ -3,8 +3,8 @@
 One renderer serves the command line, the viewer, the tests and the benchmarks. It never imports glfw: it
 draws into whatever moderngl context it is given.
 
-Per frame it draws every container segment once as an instanced oriented box; the fragment shader does the
-rest. Outputs (all read back top row first):
+Per frame it draws every container segment once as an instanced screen rectangle (container.vert); the
+fragment shader does the rest. Outputs (all read back top row first):
 
     color  (H, W, 3) uint8    shaded, tone-mapped sRGB
     ids    (H, W, 4) uint32   guide + 1 (0 = no fiber), ring, fiber, segment
@@ -88,7 +88,6 @@ class Renderer:
         self._vaos: dict[int, moderngl.VertexArray] = {}
         self._targets: dict[tuple, moderngl.Framebuffer] = {}
         self._parking = ctx.framebuffer(ctx.renderbuffer((1, 1)))   # bound while targets are released
-        self._clear_vao: moderngl.VertexArray | None = None
 
     # --- scene -------------------------------------------------------------------------------------
     def set_scene(self, scene: Scene) -> None:
@@ -143,18 +142,6 @@ class Renderer:
         geometry (RGBA32F) and depth. The viewer displays its colour texture without a read-back."""
         return self._target((int(size[0]), int(size[1])), cost=False)
 
-    def _clear(self, fbo: moderngl.Framebuffer) -> None:
-        """Zero all three targets and set depth to 1 with one fullscreen pass: glClear is undefined on
-        integer attachments, and uploading zeros costs ~38 ms per 1280x720 frame on llvmpipe."""
-        ctx = self.ctx
-        if self._clear_vao is None:
-            prog = self.programs.get(ctx, "stages/fullscreen.vert", "stages/clear.frag")
-            self._clear_vao = ctx.vertex_array(prog, [])
-        ctx.disable(moderngl.CULL_FACE | moderngl.BLEND)
-        ctx.enable(moderngl.DEPTH_TEST)
-        ctx.depth_func = "1"
-        self._clear_vao.render(moderngl.TRIANGLES, vertices=3)
-        self.prepare_state()
 
     def _msaa_samples(self, p: Params) -> int:
         n = p["quality.msaa"]
@@ -268,7 +255,7 @@ class Renderer:
             fbo = self._target(size, cost=False)
             fbo.use()
             ctx.viewport = (0, 0) + size
-            self._clear(fbo)
+            clear_targets(fbo)
             ctx.enable(moderngl.DEPTH_TEST)
             ctx.depth_func = "<"
             prog = self.program(p, mode, cost=False, supersample=supersample)
@@ -461,6 +448,13 @@ def draw_ranges(p: Params, scene: Scene, mode: str, rays: int = 1) -> list[tuple
 def is_shaped(p: Params) -> bool:
     """Curved fibers need the slower curved-fiber traversal; straight ones keep the fast path."""
     return p["shape.ellipsoid"] > 0 or p["shape.curl_amplitude"] > 0 or p["shape.twist"] != 0
+
+
+def clear_targets(fbo: moderngl.Framebuffer) -> None:
+    """Zero every colour attachment and set depth to 1. moderngl clears each attachment with the
+    glClearBuffer call of its type (uiv for the integer ids, fv for the others: tests/test_gl_infra.py), so
+    the integer target is cleared as GL defines, where glClear would leave it undefined."""
+    fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
 
 
 def release_framebuffers(parking: moderngl.Framebuffer, targets: dict) -> None:

@@ -27,7 +27,7 @@ import numpy as np
 from ..gl.shaders import ProgramCache
 from ..params import Params
 from ..render.camera import Camera
-from ..render.renderer import Frame, Renderer
+from ..render.renderer import Frame, Renderer, clear_targets
 from ..scene.containers import Scene
 from .state import VIEWS
 
@@ -108,8 +108,7 @@ class ViewportRenderer:
     def compile_all(self, programs: ProgramCache | None = None) -> None:
         """Compile every viewer program now (hot reload tries a fresh cache with this before swapping)."""
         cache = programs or self.programs
-        for frag in ("stages/clear.frag", "viewer/accumulate.frag"):
-            cache.get(self.ctx, "stages/fullscreen.vert", frag)
+        cache.get(self.ctx, "stages/fullscreen.vert", "viewer/accumulate.frag")
         for code in VIEW_CODE.values():
             cache.get(self.ctx, "stages/fullscreen.vert", "viewer/display.frag", {"VIEW": code})
         cache.get(self.ctx, "viewer/proxy.vert", "viewer/proxy.frag")
@@ -236,19 +235,17 @@ class ViewportRenderer:
 
     def _draw_direct(self, p: Params, cam: Camera, mode: str, offset) -> None:
         """Renderer.render's drawing steps without its clears and read-back (for renderers without
-        outputs=("draw",)); the targets are cleared with one fullscreen pass instead of uploaded zeros."""
+        outputs=("draw",)); the targets are cleared as the renderer clears them (renderer.clear_targets)."""
         r, ctx, size = self.renderer, self.ctx, self.size
         if r.scene is None:
             raise RuntimeError("no scene")
         fbo = r._target(size, cost=False)
         fbo.use()
         ctx.viewport = (0, 0) + size
-        ctx.disable(moderngl.BLEND | moderngl.CULL_FACE)
-        ctx.enable(moderngl.DEPTH_TEST)
-        ctx.depth_func = "1"                       # always: the clear pass writes depth 1 everywhere
-        self._fullscreen(self._prog("stages/clear.frag"))
-        # the renderer's own state and draw (Renderer.render minus clears and readback)
+        clear_targets(fbo)
+        # the renderer's own state and draw (Renderer.render minus read-back)
         r.prepare_state()
+        ctx.enable(moderngl.DEPTH_TEST)
         ctx.depth_func = "<"
         prog = r.program(p, mode, cost=False)
         r._set_uniforms(prog, p, cam, size, offset)
