@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -98,7 +99,27 @@ class RingLayout:
         return int(self.n.sum())
 
 
+# The parameters ring_layout reads: a frame asks for the layout several times (uniforms, loop budget), so
+# it is computed once per distinct set and shared, its arrays read-only.
+LAYOUT_KEYS = ("fibers.rings", "fibers.phi_step", "fibers.phi_increment", "fibers.even_spacing", "fibers.hash",
+               "fibers.seed", "fibers.fiber_radius", "fibers.radial_jitter", "fibers.angular_jitter",
+               "fibers.length_jitter")
+
+
 def ring_layout(p: Params) -> RingLayout:
+    return _ring_layout(tuple(p[k] for k in LAYOUT_KEYS))
+
+
+@lru_cache(maxsize=64)
+def _ring_layout(values: tuple) -> RingLayout:
+    p = dict(zip(LAYOUT_KEYS, values))
+    lay = _compute_ring_layout(p)
+    for arr in (lay.rho, lay.n, lay.dphi, lay.rot, lay.max_dr, lay.max_dphi, lay.reach):
+        arr.setflags(write=False)
+    return lay
+
+
+def _compute_ring_layout(p: dict) -> RingLayout:
     K = p["fibers.rings"]
     i = np.arange(K, dtype=np.float64)
     rho = 1.0 - (i + 0.5) / K
