@@ -19,9 +19,7 @@ from __future__ import annotations
 import argparse
 import csv
 import platform
-import statistics
 import subprocess
-import time
 from datetime import date
 from pathlib import Path
 
@@ -37,22 +35,14 @@ from ..render.camera import Camera
 from ..render.debug_views import cost_image, fiber_id_image
 from ..render.renderer import Renderer
 from ..scene.generators import build_scene
+from .timing import time_frames
 
 
-def time_frames(ctx, fn, reps: int, warmup: int = 2) -> tuple[float, float]:
-    """(median ms, coefficient of variation) of ``fn`` followed by ctx.finish()."""
-    for _ in range(warmup):
-        fn()
-        ctx.finish()
-    times = []
-    for _ in range(reps):
-        t0 = time.perf_counter()
-        fn()
-        ctx.finish()
-        times.append((time.perf_counter() - t0) * 1000)
-    med = statistics.median(times)
-    cv = statistics.pstdev(times) / statistics.mean(times) if len(times) > 1 else 0.0
-    return med, cv
+def frame_ms(ctx, fn, reps: int) -> tuple[float, float]:
+    """(median ms, coefficient of variation) of ``fn`` followed by ctx.finish(), after two warm-up frames
+    (timing.py: time_frames)."""
+    t = time_frames(fn, warmup=2, reps=reps, sync=ctx.finish)
+    return t.median_ms, t.cv
 
 
 class Bench:
@@ -69,7 +59,7 @@ class Bench:
 
     def draw_ms(self, p, cam, size, mode=None):
         """Time the frame as the viewer sees it: draw plus finish, no read-back."""
-        return time_frames(self.ctx, lambda: self.renderer.render(p, cam, size, outputs=("draw",), mode=mode), self.reps)
+        return frame_ms(self.ctx, lambda: self.renderer.render(p, cam, size, outputs=("draw",), mode=mode), self.reps)
 
 
 def traversal_section(b: Bench, size, out: Path, bar) -> list[dict]:
@@ -154,7 +144,7 @@ def antialias_section(b: Bench, size, out: Path, bar) -> list[dict]:
         scene, cam = b.scene(p)
         if values.get("quality.msaa", 0) > b.ctx.max_samples:
             continue
-        ms, cv = time_frames(b.ctx, lambda: b.renderer.render(p, cam, size, outputs=("color",)), b.reps)
+        ms, cv = frame_ms(b.ctx, lambda: b.renderer.render(p, cam, size, outputs=("color",)), b.reps)
         a = b.renderer.render(p, cam, size, outputs=("color", "ids"))
         moved = b.renderer.render(p, cam, size, outputs=("color", "ids"), offset=(0.1, 0.0))
         shown = a.hit | moved.hit
@@ -234,6 +224,14 @@ def write_table(rows: list[dict], path: Path) -> str:
     return "\n".join(lines)
 
 
+def section_markdown(name: str, table: str, out: Path, header: str) -> str:
+    """A section's table under the header of the run that made it, kept in DIR/NAME.md so a run of some
+    sections leaves the others' figures in the README (with their own date and commit)."""
+    text = f"## {name}\n\n{header}\n\n{table}\n"
+    (out / f"{name}.md").write_text(text)
+    return text
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m app.bench.quality", description=__doc__.split("\n")[0])
     ap.add_argument("sections", nargs="*", choices=[[], *SECTIONS], help="default: all")
@@ -245,15 +243,17 @@ def main(argv: list[str] | None = None) -> int:
     b = Bench(reps=3 if args.quick else 10)
     size = (320, 180) if args.quick else (640, 360)
     steps = {"traversal": 3, "shapes": 12, "antialias": 5, "shadows": 3, "hash": 2}
-    md = [f"# Speed for accuracy: the core's figures\n",
-          f"Date {date.today()}, commit {_commit()}, `python -m app.bench.quality{' --quick' if args.quick else ''}`.",
-          f"Machine: {platform.processor() or platform.machine()}, {b.gl.renderer}, {b.gl.version}.",
-          f"Image {size[0]}x{size[1]}; medians of {b.reps} frames (ctx.finish() + wall clock).\n"]
+    header = (f"Date {date.today()}, commit {_commit()}, `python -m app.bench.quality{' --quick' if args.quick else ''}`. "
+              f"Machine: {platform.processor() or platform.machine()}, {b.gl.renderer}, {b.gl.version}. "
+              f"Image {size[0]}x{size[1]}; medians of {b.reps} frames after 2 warm-up frames "
+              f"(ctx.finish() + wall clock).")
     with tqdm(total=sum(steps[n] for n in names), desc="bench quality", unit="run") as bar:
         for name in names:
             rows = SECTIONS[name](b, size, args.out, bar)
-            md += [f"## {name}\n", write_table(rows, args.out / name), ""]
-    (args.out / "README.md").write_text("\n".join(md) + "\n")
+            section_markdown(name, write_table(rows, args.out / name), args.out, header)
+    md = ["# Speed for accuracy: the core's figures\n"]
+    md += [(args.out / f"{n}.md").read_text() for n in SECTIONS if (args.out / f"{n}.md").exists()]
+    (args.out / "README.md").write_text("\n".join(md))
     print(f"wrote {args.out / 'README.md'}")
     return 0
 
