@@ -371,3 +371,27 @@ def test_doctor_never_raises(monkeypatch: pytest.MonkeyPatch) -> None:
     lines = doctor_report()
     assert any("probe failed" in line for line in lines)
     assert any(line.strip().startswith("python ") for line in lines)
+
+
+def test_clear_targets_zeroes_every_attachment_type(ctx: moderngl.Context) -> None:
+    """renderer.clear_targets relies on moderngl clearing each attachment with the glClearBuffer call of
+    its type: integer ids must read 0 (plain glClear leaves integer attachments undefined), floats and
+    unorm colour 0, depth 1. Written full of non-zero values first, so a clear that skips one fails."""
+    from app.render.renderer import clear_targets
+
+    size = (8, 4)
+    color = ctx.texture(size, 4, np.full((4, 8, 4), 200, np.uint8).tobytes(), dtype="f1")
+    ids = ctx.texture(size, 4, np.full((4, 8, 4), 0xDEADBEEF, np.uint32).tobytes(), dtype="u4")
+    geom = ctx.texture(size, 4, np.full((4, 8, 4), -3.5, np.float32).tobytes(), dtype="f4")
+    depth = ctx.depth_texture(size, np.full((4, 8), 0.25, np.float32).tobytes())
+    fbo = ctx.framebuffer([color, ids, geom], depth)
+    try:
+        clear_targets(fbo)
+        assert not np.frombuffer(color.read(), np.uint8).any()
+        assert not np.frombuffer(ids.read(), np.uint32).any()
+        assert not np.frombuffer(geom.read(), np.float32).any()
+        assert np.all(np.frombuffer(depth.read(), np.float32) == 1.0)
+    finally:
+        fbo.release()
+        for t in (color, ids, geom, depth):
+            t.release()
