@@ -243,7 +243,8 @@ def main(argv: list[str] | None = None) -> int:
     b = Bench(reps=3 if args.quick else 10)
     size = (320, 180) if args.quick else (640, 360)
     steps = {"traversal": 3, "shapes": 12, "antialias": 5, "shadows": 3, "hash": 2}
-    header = (f"Date {date.today()}, commit {_commit()}, `python -m app.bench.quality{' --quick' if args.quick else ''}`. "
+    command = " ".join(["python -m app.bench.quality", *args.sections] + (["--quick"] if args.quick else []))
+    header = (f"Date {date.today()}, commit {_commit()}, `{command}`. "
               f"Machine: {platform.processor() or platform.machine()}, {b.gl.renderer}, {b.gl.version}. "
               f"Image {size[0]}x{size[1]}; medians of {b.reps} frames after 2 warm-up frames "
               f"(ctx.finish() + wall clock).")
