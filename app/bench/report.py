@@ -230,10 +230,7 @@ def plot_memory(rows: list[Row], path: Path, machine: Machine | None) -> None:
     for ax in (a, b):
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
-    _caption(fig, machine)
-    fig.tight_layout(rect=(0, 0.04, 1, 1))
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path, machine)
 
 
 def plot_rings(rows: list[Row], path: Path, machine: Machine | None) -> None:
@@ -252,10 +249,7 @@ def plot_rings(rows: list[Row], path: Path, machine: Machine | None) -> None:
     axes[0][0].set_ylabel("ms per frame")
     axes[0][0].legend(fontsize=7)
     fig.suptitle("One container: rings x fibers per ring (thesis Table 3, Figure 41)", fontsize=10)
-    _caption(fig, machine)
-    fig.tight_layout(rect=(0, 0.04, 1, 1))
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path, machine)
 
 
 def plot_containers(rows: list[Row], path: Path, machine: Machine | None) -> None:
@@ -272,10 +266,7 @@ def plot_containers(rows: list[Row], path: Path, machine: Machine | None) -> Non
     ax.title.set_fontsize(9)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
-    _caption(fig, machine)
-    fig.tight_layout(rect=(0, 0.05, 1, 1))
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path, machine, bottom=0.05)
 
 
 def plot_accuracy(rows: list[Row], path: Path, machine: Machine | None) -> None:
@@ -301,10 +292,7 @@ def plot_accuracy(rows: list[Row], path: Path, machine: Machine | None) -> None:
         ax.set_title(label, fontsize=9)
         ax.grid(True, axis="y", which="both", alpha=0.3)
         ax.legend(fontsize=7)
-    _caption(fig, machine)
-    fig.tight_layout(rect=(0, 0.05, 1, 1))
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path, machine, bottom=0.05)
 
 
 def plot_scaling(rows: list[Row], path: Path, machine: Machine | None) -> None:
@@ -328,10 +316,7 @@ def plot_scaling(rows: list[Row], path: Path, machine: Machine | None) -> None:
         ax.set(xlabel=labels[axis], ylabel="ms per frame", title=f"time vs {labels[axis]}")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
-    _caption(fig, machine)
-    fig.tight_layout(rect=(0, 0.05, 1, 1))
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path, machine, bottom=0.05)
 
 
 PLOTS = {"memory": plot_memory, "rings": plot_rings, "containers": plot_containers,
@@ -354,6 +339,14 @@ def _caption(fig, machine: Machine | None) -> None:
         fig.text(0.01, 0.005, f"{machine.gl_renderer}, Mesa {machine.mesa}; {machine.cpu}, "
                  f"{machine.cores_usable} cores; {machine.date}; {machine.commit[:10]}", fontsize=6.5,
                  color="0.4")
+
+
+def _save(fig, path: Path, machine: Machine | None, bottom: float = 0.04) -> None:
+    """Caption the figure with the machine, lay it out above the caption, write it and free it."""
+    _caption(fig, machine)
+    fig.tight_layout(rect=(0, bottom, 1, 1))
+    fig.savefig(path, dpi=110)
+    _plt().close(fig)
 
 
 # --------------------------------------------------------------------------------------------------
