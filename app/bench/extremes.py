@@ -1008,73 +1008,13 @@ def case_grid(lab: Lab) -> Case:
 
 
 # ---------------------------------------------------------------------------------------------------
-# Fix costs, report
+# Report
 # ---------------------------------------------------------------------------------------------------
 CASES: dict[int, Callable[[Lab], Case]] = {
     1: case_translation, 2: case_distance, 3: case_radius, 4: case_many_fibers, 5: case_grazing,
     6: case_axis_rays, 7: case_axis_aligned, 8: case_bends, 9: case_jitter, 10: case_inside,
     11: case_temporal, 12: case_grid,
 }
-
-
-def default_scene_ms(ctx: moderngl.Context, glsl: Path | None = None, reps: int = 12,
-                     size=(640, 360)) -> float:
-    """Median ms per exact frame (ids only) of the default scene, optionally with another glsl/ tree."""
-    from ..gl.shaders import ProgramCache
-
-    r = Renderer(ctx, ProgramCache(glsl) if glsl else None)
-    p = Params({})
-    scene = build_scene(p)
-    r.set_scene(scene)
-    cam = Camera.from_params(p, scene, size[0] / size[1])
-    for _ in range(2):
-        r.render(p, cam, size, outputs=("ids",), mode="exact")
-    times = []
-    for _ in range(reps):
-        ctx.finish()
-        t = time.perf_counter()
-        r.render(p, cam, size, outputs=("ids",), mode="exact")
-        ctx.finish()
-        times.append(time.perf_counter() - t)
-    r.release_targets()
-    return 1000.0 * float(np.median(times))
-
-
-def fix_costs(ctx: moderngl.Context, baseline_ref: str = "3ba62b6", rounds: int = 10) -> dict | None:
-    """Default-scene ms per frame with today's shaders and with glsl/ as of ``baseline_ref`` (before the
-    fixes this suite drove), alternated round by round; the change is the median of the paired ratios,
-    which a shared machine's load drifts move far less than either time. None without git."""
-    import subprocess
-
-    from ..gl.shaders import glsl_root
-
-    root = glsl_root()
-    tmp = Path(tempfile.mkdtemp())
-    try:
-        files = subprocess.run(["git", "ls-tree", "-r", "--name-only", baseline_ref, "glsl"], cwd=root.parent,
-                               capture_output=True, text=True, check=True).stdout.split()
-        for name in files:
-            blob = subprocess.run(["git", "show", f"{baseline_ref}:{name}"], cwd=root.parent, capture_output=True,
-                                  check=True).stdout
-            (tmp / name).parent.mkdir(parents=True, exist_ok=True)
-            (tmp / name).write_bytes(blob)
-        # shaders added since the baseline (the renderer's clear pass) come from today's tree
-        for f in root.rglob("*"):
-            if f.is_file() and not (tmp / "glsl" / f.relative_to(root)).exists():
-                (tmp / "glsl" / f.relative_to(root)).parent.mkdir(parents=True, exist_ok=True)
-                shutil.copy(f, tmp / "glsl" / f.relative_to(root))
-        before, after = [], []
-        for _ in range(rounds):
-            before.append(default_scene_ms(ctx, tmp / "glsl", reps=6))
-            after.append(default_scene_ms(ctx, reps=6))
-        ratio = float(np.median(np.array(after) / np.array(before)))
-        return {"baseline": baseline_ref, "before_ms": float(np.median(before)),
-                "after_ms": float(np.median(before)) * ratio, "ratio": ratio, "before_runs": before,
-                "after_runs": after}
-    except (subprocess.CalledProcessError, FileNotFoundError, OSError):
-        return None
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def contact_sheet(cases: list[Case], path: Path, cell: int = 160) -> None:
@@ -1099,7 +1039,7 @@ def contact_sheet(cases: list[Case], path: Path, cell: int = 160) -> None:
     sheet.save(path)
 
 
-def markdown(cases: list[Case], costs: dict | None, quick: bool, renderer: str) -> str:
+def markdown(cases: list[Case], quick: bool, renderer: str) -> str:
     lines = [f"# vfiber bench extremes ({'quick' if quick else 'full'})", "",
              f"Renderer: {renderer}. Each case renders float outputs and holds them against the float64 "
              "reference or the same scene in a benign configuration (app/bench/extremes.py).", "",
@@ -1109,18 +1049,12 @@ def markdown(cases: list[Case], costs: dict | None, quick: bool, renderer: str) 
                      f"{c.threshold} | {c.notes.replace('|', '/')} |")
     lines += ["", f"{sum(c.passed for c in cases)} of {len(cases)} cases pass; "
               f"{sum(c.seconds for c in cases):.0f} s in all.", ""]
-    if costs:
-        lines += ["## Cost of the fixes at the default scene", "",
-                  f"Exact mode, 640x360, ids only, {len(costs['after_runs'])} alternated rounds of 6 frames: glsl/ "
-                  f"as of {costs['baseline']} (before the fixes) {costs['before_ms']:.1f} ms per frame; today "
-                  f"{100 * (costs['ratio'] - 1):+.1f}% (median of the paired ratios), "
-                  f"{costs['after_ms'] - costs['before_ms']:+.1f} ms.", ""]
     lines += ["See docs/limits.md for what still fails and the ranges the tool enforces.", ""]
     return "\n".join(lines)
 
 
-def run_extremes(out_dir, quick: bool, cases: list[int] | None = None, costs: bool | None = None,
-                 ctx: moderngl.Context | None = None, verbose: bool = False) -> list[dict]:
+def run_extremes(out_dir, quick: bool, cases: list[int] | None = None, ctx: moderngl.Context | None = None,
+                 verbose: bool = False) -> list[dict]:
     """Run the cases (all by default), write extremes.md, extremes.json and extremes.png to ``out_dir``;
     return one row per case (number, title, passed, rate, measure, threshold, notes, details, seconds)."""
     from ..gl.context import create_headless
@@ -1142,11 +1076,10 @@ def run_extremes(out_dir, quick: bool, cases: list[int] | None = None, costs: bo
             print(f"  {case.number:2d}. {case.title:<60s} {'pass' if case.passed else 'FAIL'}  "
                   f"rate {case.rate:.3g}  ({case.seconds:.0f} s)", flush=True)
         lab.r.release_targets()
-        cost = fix_costs(ctx) if (costs if costs is not None else not quick) else None
         renderer = ctx.info.get("GL_RENDERER", "?")
-        (out / "extremes.md").write_text(markdown(results, cost, quick, renderer))
-        (out / "extremes.json").write_text(json.dumps({"cases": [c.row() for c in results], "fix_costs": cost},
-                                                      indent=2, default=float))
+        (out / "extremes.md").write_text(markdown(results, quick, renderer))
+        (out / "extremes.json").write_text(json.dumps({"cases": [c.row() for c in results]}, indent=2,
+                                                      default=float))
         contact_sheet(results, out / "extremes.png")
         return [c.row() for c in results]
     finally:
@@ -1160,11 +1093,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=None, help="output folder (default out/bench-extremes)")
     ap.add_argument("--case", type=int, action="append", choices=sorted(CASES), help="run only this case "
                     "(repeatable)")
-    ap.add_argument("--no-costs", action="store_true", help="skip timing the fixes against the old shaders")
     ap.add_argument("-v", "--verbose", action="store_true", help="print each configuration's time")
     args = ap.parse_args(argv)
     out = args.out or Path("out") / ("bench-extremes-quick" if args.quick else "bench-extremes")
-    rows = run_extremes(out, args.quick, args.case, costs=False if args.no_costs else None, verbose=args.verbose)
+    rows = run_extremes(out, args.quick, args.case, verbose=args.verbose)
     print(f"wrote {out / 'extremes.md'}, {out / 'extremes.png'}")
     return 0 if all(r["passed"] for r in rows) else 1
 
