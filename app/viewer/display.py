@@ -6,7 +6,7 @@ No imgui here. Two ways to get the renderer's image onto the screen (``ViewSetti
     draw into the renderer's own offscreen targets and sample them as textures: no readback, no upload.
     ``Renderer.render`` always reads back what it draws (``outputs=()`` draws nothing), so this path calls
     the renderer's drawing steps itself (``program``, ``_set_uniforms``, ``_draw``, ``_target``) and clears
-    the targets with a fullscreen pass instead of uploading zeros. It relies on those private names; if
+    the targets as the renderer does (``clear_targets``). It relies on those private names; if
     they are missing it falls back to ``readback`` by itself and says so.
 ``readback``
     ``Renderer.render(outputs=...)`` (the public API the CLI and tests use) then upload the numpy
