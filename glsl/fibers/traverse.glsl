@@ -1,11 +1,12 @@
 // traverse.glsl: find the fiber a ray hits inside one container segment (thesis chapter III, Appendix A).
-//   FiberHit traverse(Segment seg, UnitRay ur)     then reports a loop budget run out (loop_canary)
+//   FiberHit traverse(Segment seg, UnitRay ur)     in the cost pass, then reports a loop budget run out
 // TRAVERSAL selects the mode:
 //   0 fast   the thesis's order, first hit wins: front arcs outer to inner, then the back arcs inner to
-//            outer from a fixed-size stack (3.11); within an arc, fibers in the order the ray meets them
-//            (Figure 16).
-//   1 exact  the same order, but every candidate of an arc is tested and traversal stops only when the
-//            next arc starts beyond the nearest hit so far: returns the nearest fiber.
+//            outer (thesis 3.11 keeps them on a stack; traverse_straight recomputes each from its two
+//            ring boundaries); within an arc, fibers in the order the ray meets them (Figure 16).
+//   1 exact  the same order, but the candidates of an arc are tested up to two reaches past the latest
+//            improvement and traversal stops only when the next arc starts beyond the nearest hit so
+//            far: returns the nearest fiber.
 //   2 brute  tests every fiber of every ring in [uBruteRange.x, uBruteRange.y) of the container's flat
 //            fiber numbering; the renderer splits a container's fibers into chunks (one draw each) so no
 //            invocation passes llvmpipe's 65,535 loop iterations; the depth test keeps the nearest.
@@ -14,6 +15,8 @@
 // split at the point closest to the axis so each piece sweeps less than 90 degrees. Only fibers whose slot
 // angle lies within the piece's angles widened by the ring's reach can be hit; no other fiber is tested.
 // Counters: gTests (fiber tests), gPieces (arcs visited), gIters (loop iterations, all loops).
+// llvmpipe runs both sides of every branch and every loop at least once per SIMD batch: the straight-fiber
+// path is written without early returns or `continue` (docs/performance.md).
 
 #include "fibers/layout.glsl"
 #include "geometry/container.glsl"
