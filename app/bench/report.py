@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from .. import units
 from .suites import SUITES, thesis_table_2
 from .timing import Machine, crossover, fit_power_law
 
@@ -54,12 +55,7 @@ def _parse(v: str) -> Any:
 def human_bytes(n: float | None) -> str:
     if n is None or (isinstance(n, float) and math.isnan(n)):
         return ""
-    n = float(n)
-    for unit in ("B", "KiB", "MiB", "GiB"):
-        if abs(n) < 1024:
-            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
-        n /= 1024
-    return f"{n:.1f} TiB"
+    return units.human_bytes(float(n))
 
 
 def fmt(key: str, v: Any) -> str:

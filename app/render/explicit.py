@@ -44,6 +44,7 @@ import numpy as np
 from .. import reference
 from ..gl.shaders import ProgramCache
 from ..params import Params
+from ..units import human_bytes
 from ..scene.containers import SEGMENT_BYTES, Scene
 from .camera import Camera
 from .renderer import MAX_RINGS, Frame, clear_targets, light_direction, release_framebuffers
@@ -70,19 +71,11 @@ class ExplicitBudgetError(MemoryError):
         self.needed, self.budget, self.fibers = needed, budget, fibers
         most = int(budget // per_fiber) if per_fiber > 0 else 0
         super().__init__(
-            f"explicit fibers need {_human(needed)} of GPU buffers for {fibers:,} fibers "
-            f"({per_fiber:.1f} bytes each), over the {_human(budget)} budget: the explicit method refuses "
+            f"explicit fibers need {human_bytes(needed)} of GPU buffers for {fibers:,} fibers "
+            f"({per_fiber:.1f} bytes each), over the {human_bytes(budget)} budget: the explicit method refuses "
             f"rather than exhaust the machine. Fit at most ~{most:,} fibers (fewer containers or rings, a "
             f"larger fibers.phi_step), raise the budget (ExplicitRenderer(ctx, budget_bytes=...)), or use the "
             f"virtual method, whose memory does not grow with the number of fibers.")
-
-
-def _human(n: float) -> str:
-    for unit in ("B", "KiB", "MiB", "GiB"):
-        if abs(n) < 1024:
-            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
-        n /= 1024
-    return f"{n:.1f} TiB"
 
 
 # --------------------------------------------------------------------------------------------------

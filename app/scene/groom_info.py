@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ..params import Params
+from ..units import human_bytes
 from .containers import Scene
 
 POLYLINE_VERTEX_BYTES = 12
@@ -104,14 +105,6 @@ def _count(d: dict[str, int]) -> str:
     return ", ".join(f"{n:,} {why}" for why, n in d.items()) if d else "none"
 
 
-def _human(n: float) -> str:
-    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
-        if abs(n) < 1024 or unit == "TiB":
-            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
-        n /= 1024
-    return f"{n} B"
-
-
 def source_info(scene: Scene, p: Params) -> list[str]:
     """Lines for ``vfiber info``: the file, what was kept, orientation, guides, fibers and bytes."""
     from .. import reference
@@ -151,11 +144,11 @@ def source_info(scene: Scene, p: Params) -> list[str]:
                  f"container: {fibers / max(s.strands, 1):,.1f} fibers per file strand")
     sizes = gpu_bytes(scene, p)
     v = sizes["virtual"][0]
-    lines.append(f"{'GPU virtual':<{_W}}{v:,} B ({_human(v)}): {sizes['virtual'][1]}")
+    lines.append(f"{'GPU virtual':<{_W}}{v:,} B ({human_bytes(v)}): {sizes['virtual'][1]}")
     for key, label in (("explicit", "GPU explicit"), ("polylines", "GPU polylines")):
         if key in sizes:
             b, how = sizes[key]
-            lines.append(f"{label:<{_W}}{b:,} B ({_human(b)}), {b / max(v, 1):,.0f}x virtual: {how}")
+            lines.append(f"{label:<{_W}}{b:,} B ({human_bytes(b)}), {b / max(v, 1):,.0f}x virtual: {how}")
     if s.seconds:
         lines.append(f"{'build time':<{_W}}" + ", ".join(f"{k} {t:.3f} s" for k, t in s.seconds.items()))
     for w in s.warnings:

@@ -18,6 +18,7 @@ from imgui_bundle import imgui
 
 from ..params import GROUPS, SPEC, Param, Params, max_fiber_radius
 from ..presets import bundled_names, presets_dir
+from ..units import human_bytes
 from .display import HEAT_STOPS
 from .state import (EXPLICIT_FORMULA, FRAME_PATHS, INTERACTIVE_MODES, INTERACTIVE_SCALES, VIEWS,
                     AppState, is_groom_path)
@@ -498,14 +499,6 @@ def _overlay_begin(name: str, x: float, y: float, pivot=(0.0, 0.0)) -> bool:
     return imgui.begin(name, None, flags)[0]
 
 
-def _bytes(n: float) -> str:
-    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
-        if abs(n) < 1024 or unit == "TiB":
-            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
-        n /= 1024
-    return f"{n:.1f} TiB"
-
-
 def _stats_overlay(state: AppState, layout: Layout) -> None:
     s = state.stats
     if _overlay_begin("##stats", layout.x + 10, layout.y + 10):
@@ -519,7 +512,7 @@ def _stats_overlay(state: AppState, layout: Layout) -> None:
         imgui.text(f"fibers {s.fibers_exact:,} exact   {s.fibers_41:,.0f} (expr. 4.1)")
         imgui.text(f"containers {s.guides:,} guides, {s.segments:,} segments")
         ratio = s.explicit_bytes / s.scene_gpu_bytes if s.scene_gpu_bytes else 0.0
-        imgui.text(f"scene on GPU {_bytes(s.scene_gpu_bytes)}   explicit {_bytes(s.explicit_bytes)}"
+        imgui.text(f"scene on GPU {human_bytes(s.scene_gpu_bytes)}   explicit {human_bytes(s.explicit_bytes)}"
                    f" ({ratio:,.0f}x)")
         if s.tests_per_pixel is not None:
             imgui.text(f"fiber tests / covered pixel {s.tests_per_pixel:.1f} (p99 {s.tests_p99:.0f}; "
