@@ -224,12 +224,10 @@ def write_table(rows: list[dict], path: Path) -> str:
     return "\n".join(lines)
 
 
-def section_markdown(name: str, table: str, out: Path, header: str) -> str:
+def section_markdown(name: str, table: str, out: Path, header: str) -> None:
     """A section's table under the header of the run that made it, kept in DIR/NAME.md so a run of some
     sections leaves the others' figures in the README (with their own date and commit)."""
-    text = f"## {name}\n\n{header}\n\n{table}\n"
-    (out / f"{name}.md").write_text(text)
-    return text
+    (out / f"{name}.md").write_text(f"## {name}\n\n{header}\n\n{table}\n")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -142,7 +142,6 @@ class Renderer:
         geometry (RGBA32F) and depth. The viewer displays its colour texture without a read-back."""
         return self._target((int(size[0]), int(size[1])), cost=False)
 
-
     def _msaa_samples(self, p: Params) -> int:
         n = p["quality.msaa"]
         if n == 0:

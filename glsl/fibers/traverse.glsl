@@ -127,9 +127,13 @@ float fiber_entry(Segment seg, FiberRay fr, vec2 c, float vEnd, out int kind) {
 // Whether a hit at s on fiber (ring, j) replaces the best so far. Ties (a ray entering through a cap
 // inside two overlapping fibers) go to the lower (ring, fiber), the order brute force tests them in, so
 // every mode names the same fiber.
+bool beats(float s, int ring, int j, float bestS, int bestRing, int bestFiber) {
+    bool tie = s == bestS && (ring < bestRing || (ring == bestRing && j < bestFiber));
+    return s < bestS || (tie && s < INF);
+}
+
 bool improves(FiberHit best, float s, int ring, int j) {
-    bool tie = s == best.s && (ring < best.ring || (ring == best.ring && j < best.fiber));
-    return s < best.s || (tie && s < INF);
+    return beats(s, ring, j, best.s, best.ring, best.fiber);
 }
 
 void test_fiber(Segment seg, FiberRay fr, int ring, int j, inout FiberHit best) {
@@ -453,10 +457,9 @@ FiberHit traverse_straight(Segment seg, UnitRay ur) {
             int kind;
             float s = fiber_entry(seg, fr, c, vEnd, kind);
             if (i == gSkipRing && j == gSkipFiber) s = INF;
-            // ties go to the lower (ring, fiber), as brute force meets them (improves())
-            bool lower = bestJ >= 0 ? j < bestJ : (i < best.ring || (i == best.ring && j < best.fiber));
-            bool tie = s == bestS && s < INF && lower;
-            bool better = s < bestS || tie;
+            // the best so far: this arc's, or the earlier arcs' (ties as brute force breaks them)
+            bool mine = bestJ >= 0;
+            bool better = beats(s, i, j, bestS, mine ? i : best.ring, mine ? bestJ : best.fiber);
             bestS = better ? s : bestS;
             bestJ = better ? j : bestJ;
             bestC = better ? c : bestC;
