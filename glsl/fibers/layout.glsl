@@ -23,17 +23,17 @@ uniform float uFiberRadius;
 uniform float uLengthJitter;
 uniform uint uSeed;
 
-// fiber_key(seed, guide, ring, j) = lowbias32(ring_key(seed, guide, ring) ^ j) (hash.glsl): a traversal
-// hashes the ring part once per arc and each fiber costs one round more.
-// The three random numbers that place a fiber: radial, angular, length.
-vec3 fiber_placement_randoms(uint guide, int ring, int j) {
+// The three random numbers that place fiber j of a ring: radial, angular, length. A = uRingA[ring];
+// ringKey = ring_key(uSeed, guide, ring) (hash.glsl), which a traversal computes once per arc, so each
+// fiber costs one hash round more: fiber_key(seed, guide, ring, j) = lowbias32(ringKey ^ j).
+vec3 placement_randoms(vec4 A, uint ringKey, int ring, int j) {
 #if HASH_THESIS
-    float slotDeg = degrees(uRingA[ring].z + float(j) * uRingA[ring].y);
+    float slotDeg = degrees(A.z + float(j) * A.y);
     return vec3(thesis_random(slotDeg, float(ring), float(CH_RADIAL)),
                 thesis_random(slotDeg, float(ring), float(CH_ANGULAR)),
                 thesis_random(slotDeg, float(ring), float(CH_LENGTH)));
 #else
-    return key_randoms(lowbias32(ring_key(uSeed, guide, ring) ^ uint(j)));
+    return key_randoms(lowbias32(ringKey ^ uint(j)));
 #endif
 }
 
@@ -46,27 +46,17 @@ float fiber_curl_phase(uint guide, int ring, int j) {
 #endif
 }
 
-// Where fiber j of a ring sits, from its three random numbers u; A = uRingA[ring], B = uRingB[ring].
-void place_fiber(vec4 A, vec4 B, int j, vec3 u, out vec2 c, out float vEnd) {
+// Where fiber j of a ring sits (centre c) and where it stops (vEnd), for a traversal that holds the
+// ring's uniforms A = uRingA[ring], B = uRingB[ring] and its ring key already.
+void fiber_center_keyed(vec4 A, vec4 B, uint ringKey, int ring, int j, out vec2 c, out float vEnd) {
+    vec3 u = placement_randoms(A, ringKey, ring, j);
     float radius = A.x + (2.0 * u.x - 1.0) * B.x;
     float angle = A.z + float(j) * A.y + (2.0 * u.y - 1.0) * B.y;
     c = radius * vec2(cos(angle), sin(angle));
     vEnd = 1.0 - uLengthJitter * u.z;
 }
 
+// The same from the guide and ring alone.
 void fiber_center(uint guide, int ring, int j, out vec2 c, out float vEnd) {
-    place_fiber(uRingA[ring], uRingB[ring], j, fiber_placement_randoms(guide, ring, j), c, vEnd);
-}
-
-// The same for a traversal that holds the ring's uniforms and ring_key(uSeed, guide, ring) already.
-void fiber_center_keyed(vec4 A, vec4 B, uint ringKey, int ring, int j, out vec2 c, out float vEnd) {
-#if HASH_THESIS
-    float slotDeg = degrees(A.z + float(j) * A.y);
-    vec3 u = vec3(thesis_random(slotDeg, float(ring), float(CH_RADIAL)),
-                  thesis_random(slotDeg, float(ring), float(CH_ANGULAR)),
-                  thesis_random(slotDeg, float(ring), float(CH_LENGTH)));
-#else
-    vec3 u = key_randoms(lowbias32(ringKey ^ uint(j)));
-#endif
-    place_fiber(A, B, j, u, c, vEnd);
+    fiber_center_keyed(uRingA[ring], uRingB[ring], ring_key(uSeed, guide, ring), ring, j, c, vEnd);
 }
