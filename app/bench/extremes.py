@@ -95,6 +95,13 @@ def ids3(ids: np.ndarray) -> np.ndarray:
     return np.stack([ids[..., 0], np.where(hit, ids[..., 1], -1), np.where(hit, ids[..., 2], -1)], -1)
 
 
+def id_disagreement(ref: np.ndarray, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(wrong, shown): the pixels where float64 (``ref``, ids3 form) or the GPU (``ids``) shows a fiber, and
+    those among them whose fiber differs."""
+    shown = (ref[..., 0] > 0) | (ids[..., 0] > 0)
+    return ~np.all(ref == ids3(ids), -1) & shown, shown
+
+
 def reference_ids(scene: Scene, p: Params, cam: Camera, size, offset=(0.0, 0.0)):
     """Float64 brute force for every pixel ray: (ids3 image, Hits)."""
     w, h = size
@@ -455,9 +462,7 @@ def case_axis_rays(lab: Lab) -> Case:
             cam = Camera(target + dist * d, target, fov, dist * 0.5, dist * 2, up=perp)
             f = lab.render(p, cam, size)
             ref, _ = reference_ids(scene, p, cam, size)
-            got = ids3(f.ids)
-            shown = (ref[..., 0] > 0) | f.hit
-            wrong = ~np.all(ref == got, -1) & shown
+            wrong, shown = id_disagreement(ref, f.ids)
             bad += int(wrong.sum())
             hits += int(shown.sum())
             holes += int(((ref[..., 0] > 0) & ~f.hit).sum())
@@ -569,9 +574,7 @@ def case_bends(lab: Lab) -> Case:
             f = lab.render(p, cam, size)
             b = lab.render(p, cam, size, "brute")
             ref, hits = reference_ids(scene, p, cam, size)
-            got = ids3(f.ids)
-            shown = (ref[..., 0] > 0) | f.hit
-            wrong = ~np.all(ref == got, -1) & shown
+            wrong, shown = id_disagreement(ref, f.ids)
             wrong_total += int(wrong.sum())
             shown_total += int(shown.sum())
             holes += int(((ref[..., 0] > 0) & ~f.hit).sum())
@@ -651,8 +654,8 @@ def case_jitter(lab: Lab) -> Case:
     b = lab.render(p, cam, size, "brute")
     ref, _ = reference_ids(scene, p, cam, size)
     differ = int(np.any(e.ids[..., :3] != b.ids[..., :3], -1).sum())
-    shown = (ref[..., 0] > 0) | e.hit
-    disagree = float((~np.all(ref == ids3(e.ids), -1) & shown).sum() / max(1, shown.sum()))
+    wrong, shown = id_disagreement(ref, e.ids)
+    disagree = float(wrong.sum() / max(1, shown.sum()))
     if differ or disagree > 1e-3:
         problems.append(f"full jitter on the GPU: {differ} px exact != brute, {_pct(disagree)} differ from float64")
     # just above the bound: rejected, with a message that names key, value and range
@@ -698,8 +701,7 @@ def case_inside(lab: Lab) -> Case:
         cam = Camera(pos, target, 70, near, far, up=perp)
         f = lab.render(p, cam, size)
         ref, _ = reference_ids(scene, p, cam, size)
-        shown = (ref[..., 0] > 0) | f.hit
-        wrong = ~np.all(ref == ids3(f.ids), -1) & shown
+        wrong, shown = id_disagreement(ref, f.ids)
         bad += int(wrong.sum())
         shown_total += int(shown.sum())
         nonfinite += f.nonfinite()
