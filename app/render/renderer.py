@@ -3,15 +3,20 @@
 One renderer serves the command line, the viewer, the tests and the benchmarks. It never imports glfw: it
 draws into whatever moderngl context it is given.
 
-Per frame it draws every container segment once as an instanced screen rectangle (container.vert); the
-fragment shader does the rest. Outputs (all read back top row first):
+Per frame it draws one fullscreen pass (stages/raycast.frag): each pixel's ray walks a hierarchy of the
+container segments (bvh.py, geometry/bvh.glsl) nearest box first and traverses each container's virtual
+fibers until the next box starts behind the nearest fiber found, so a frame costs its covered pixels and
+the containers in front of their fibers, not every container that overlaps them on screen. A pixel that
+needs more containers than one draw holds keeps its place in a per-pixel state image and the renderer
+draws again until none is left. Outputs (all read back top row first):
 
     color  (H, W, 3) uint8    shaded, tone-mapped sRGB
     ids    (H, W, 4) uint32   guide + 1 (0 = no fiber), ring, fiber, segment
     geom   (H, W, 4) float32  world normal xyz, distance along the ray (0 on a miss)
-    cost   (H, W, 4) float32  fiber tests, arcs visited, container fragments, loop iterations (summed over
-                              every container the pixel's ray enters: the work actually done)
-    iters  (H, W)    float32  the most loop iterations any single shader invocation ran
+    cost   (H, W, 4) float32  fiber tests, arcs visited, containers entered and traversed, loop passes
+                              (summed over the pixel's draws: the work actually done)
+    walk   (H, W, 4) float32  candidate containers traversed, box tests, walks, walks that ran out
+    iters  (H, W)    float32  the most loop passes any single shader invocation ran
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ from . import look
 from ..gl.shaders import ProgramCache
 from ..params import ParamError, Params
 from ..scene.containers import SEGMENT_BYTES, Scene
+from .bvh import ContainerBvh, build_bvh
 from .camera import Camera
 
 MAX_RINGS = 64
@@ -53,9 +59,10 @@ MSAA_PATTERNS = {
     8: [(1, -3), (-1, 3), (5, 1), (-3, -5), (-5, 5), (-7, -1), (3, 7), (7, -7)],
 }
 MODES = {"fast": 0, "exact": 1, "brute": 2}
-
-# The proxy rectangle's corners as two triangles (glsl/stages/container.vert places them per segment).
-_QUAD = np.array([[0, 0], [1, 0], [1, 1], [0, 0], [1, 1], [0, 1]], dtype=np.float32)
+WALK_CAP = 4096                   # box tests per walk (glsl/geometry/bvh.glsl)
+MAX_DRAWS = 512                   # draws of one sample and fiber range before the renderer gives up
+COVERAGE_LEVEL = 6                # hierarchy level whose node boxes mark the pixels to walk (<= 64 boxes)
+WALK_DEPTH, RESOLVE_DEPTH = 0.5, 0.75     # window depths of the fullscreen passes (see _walk_draws)
 
 
 @dataclass
@@ -66,7 +73,9 @@ class Frame:
     geom: np.ndarray | None = None
     cost: np.ndarray | None = None
     iters: np.ndarray | None = None
+    walk: np.ndarray | None = None
     draws: int = 0
+    unfinished: int = 0     # pixels still short of their nearest fiber after MAX_DRAWS (0 unless broken)
 
     @property
     def hit(self) -> np.ndarray:
@@ -83,27 +92,36 @@ class Renderer:
         self.ctx = ctx
         self.programs = programs or ProgramCache()
         self.scene: Scene | None = None
-        self._quad = ctx.buffer(_QUAD.tobytes())
-        self._instances: moderngl.Buffer | None = None
+        self.bvh: ContainerBvh | None = None
+        self._buffers: dict[str, moderngl.Buffer] = {}
+        self._progress = ctx.buffer(reserve=4)
         self._vaos: dict[int, moderngl.VertexArray] = {}
         self._targets: dict[tuple, moderngl.Framebuffer] = {}
         self._parking = ctx.framebuffer(ctx.renderbuffer((1, 1)))   # bound while targets are released
 
     # --- scene -------------------------------------------------------------------------------------
     def set_scene(self, scene: Scene) -> None:
-        """Upload the containers once. Nothing here depends on how many fibers are drawn."""
-        if self._instances is not None:
-            self._instances.release()
-        for vao in self._vaos.values():
-            vao.release()
-        self._vaos.clear()
+        """Upload the containers and their hierarchy once. Nothing here depends on how many fibers are
+        drawn: five vec4 per segment, two per hierarchy node, one index per segment."""
+        for buf in self._buffers.values():
+            buf.release()
         self.scene = scene
-        self._instances = self.ctx.buffer(scene.segments.tobytes())
+        self.bvh = build_bvh(scene)
+        data = scene.segments if scene.n_segments else np.zeros((1, 20), np.float32)
+        self._buffers = {"segments": self.ctx.buffer(np.ascontiguousarray(data, np.float32).tobytes()),
+                         "nodes": self.ctx.buffer(self.bvh.nodes.tobytes()),
+                         "order": self.ctx.buffer(np.maximum(self.bvh.order, 0).astype(np.uint32).tobytes()
+                                                  if scene.n_segments else bytes(4))}
 
     @property
     def scene_gpu_bytes(self) -> int:
-        """Bytes of GPU buffers that hold the scene: container segments plus the shared proxy rectangle."""
-        return (self._instances.size if self._instances else 0) + self._quad.size
+        """Bytes of GPU buffers that hold the scene: container segments plus their hierarchy."""
+        return sum(b.size for b in self._buffers.values())
+
+    def frame_gpu_bytes(self, size: tuple[int, int]) -> int:
+        """Bytes of the per-pixel targets of a frame at ``size`` (colour, ids, geometry, walk state): sized
+        by the image, never by the scene or the fiber count."""
+        return frame_gpu_bytes(size)
 
     def render_quality(self, p: Params, cam: Camera, size: tuple[int, int], *, outputs=("color",),
                        mode: str | None = None) -> Frame:
@@ -115,32 +133,39 @@ class Renderer:
             frame = _upscale(frame, size)
         return frame
 
-    def _vao(self, program: moderngl.Program) -> moderngl.VertexArray:
-        key = id(program)
-        if key not in self._vaos:
-            self._vaos[key] = self.ctx.vertex_array(program, [
-                (self._quad, "2f", "in_quad"),
-                (self._instances, "4f 4f 4f 4f 4f/i", "in_a", "in_b", "in_c", "in_d", "in_e"),
-            ])
-        return self._vaos[key]
-
     # --- targets -----------------------------------------------------------------------------------
-    def _target(self, size: tuple[int, int], cost: bool) -> moderngl.Framebuffer:
-        key = (size, cost)
+    def _target(self, size: tuple[int, int], kind: str) -> moderngl.Framebuffer:
+        """The framebuffers of a frame at ``size``, all sharing one depth buffer (the mask of pixels still
+        walking, renderer.render): "image" (colour RGBA8, ids RGBA32UI, geometry RGBA32F), "walk" (depth
+        only) and "state" (the walk's per-pixel images: state, hit key, hit shape, cost, walk counters,
+        bound as images and cleared through this framebuffer)."""
+        key = (size, kind)
         if key not in self._targets:
-            if cost:
-                att = [self.ctx.texture(size, 4, dtype="f4")]
-                self._targets[key] = self.ctx.framebuffer(att)
+            depth = self._targets.get((size, "depth"))
+            if depth is None:
+                depth = self._targets[(size, "depth")] = self.ctx.depth_renderbuffer(size)
+            tex = self.ctx.texture
+            if kind == "image":
+                colors = [tex(size, 4, dtype="f1"), tex(size, 4, dtype="u4"), tex(size, 4, dtype="f4")]
+                self._targets[(size, "image colors")] = self.ctx.framebuffer(colors)   # cleared without depth
+                self._targets[key] = self.ctx.framebuffer(colors, depth)
+                self._targets[key].depth_mask = False     # the resolve reads the mask, never writes it
+            elif kind == "walk":
+                self._targets[key] = self.ctx.framebuffer([], depth)
             else:
-                att = [self.ctx.texture(size, 4, dtype="f1"), self.ctx.texture(size, 4, dtype="u4"),
-                       self.ctx.texture(size, 4, dtype="f4")]
-                self._targets[key] = self.ctx.framebuffer(att, self.ctx.depth_renderbuffer(size))
+                images = [tex(size, 4, dtype="u4"), tex(size, 4, dtype="u4"), tex(size, 4, dtype="f4"),
+                          tex(size, 4, dtype="f4"), tex(size, 4, dtype="f4")]
+                self._targets[key] = self.ctx.framebuffer(images)
+                # what each pass clears: the walk state always; the cost counters for the cost output (the
+                # hit images are written wherever the state says there is a hit)
+                self._targets[(size, "state clear")] = self.ctx.framebuffer(images[:1])
+                self._targets[(size, "cost clear")] = self.ctx.framebuffer(images[3:])
         return self._targets[key]
 
     def targets(self, size: tuple[int, int]) -> moderngl.Framebuffer:
         """The framebuffer ``render`` draws into at ``size``: colour (premultiplied RGBA8), ids (RGBA32UI),
         geometry (RGBA32F) and depth. The viewer displays its colour texture without a read-back."""
-        return self._target((int(size[0]), int(size[1])), cost=False)
+        return self._target((int(size[0]), int(size[1])), "image")
 
     def _msaa_samples(self, p: Params) -> int:
         n = p["quality.msaa"]
@@ -157,28 +182,17 @@ class Renderer:
         """GL state of the container draws: no blending, no culling (a proxy rectangle faces either way)."""
         self.ctx.disable(moderngl.BLEND | moderngl.CULL_FACE)
 
-    def _msaa_targets(self, size: tuple[int, int], samples: int):
-        key = (size, "msaa", samples)
-        if key not in self._targets:
-            ms = self.ctx.framebuffer([self.ctx.renderbuffer(size, 4, samples=samples)],
-                                      self.ctx.depth_renderbuffer(size, samples=samples))
-            resolved = self.ctx.framebuffer([self.ctx.texture(size, 4, dtype="f1")])
-            self._targets[key] = ms
-            self._targets[key + ("resolved",)] = resolved
-        return self._targets[key], self._targets[key + ("resolved",)]
-
     def release_targets(self) -> None:
         release_framebuffers(self._parking, self._targets)
 
     # --- drawing -----------------------------------------------------------------------------------
-    def program(self, p: Params, mode: str, cost: bool, supersample: int = 1,
-                msaa: int = 0) -> moderngl.Program:
-        defines = {"TRAVERSAL": MODES[mode], "MAX_RINGS": MAX_RINGS, "MAX_SUB": MAX_SUB,
+    def program(self, p: Params, mode: str, cost: bool, stage: str = "walk") -> moderngl.Program:
+        """The walk pass (``stage`` "walk") or the shading of its winners ("resolve") for ``p``."""
+        defines = {"TRAVERSAL": MODES[mode], "MAX_RINGS": MAX_RINGS, "MAX_SUB": MAX_SUB, "WALK_CAP": WALK_CAP,
                    "HASH_THESIS": int(p["fibers.hash"] == "thesis"), "COST_PASS": int(cost),
                    "SHAPED": int(is_shaped(p)), "SHADING_MODEL": SHADING_MODELS[p["look.model"]],
-                   "SHADOW_MODE": SHADOW_MODES[p["look.self_shadow"]], "SUPERSAMPLE": supersample,
-                   "MSAA_SAMPLES": msaa}
-        return self.programs.get(self.ctx, "stages/container.vert", "stages/container.frag", defines)
+                   "SHADOW_MODE": SHADOW_MODES[p["look.self_shadow"]]}
+        return self.programs.get(self.ctx, "stages/fullscreen_depth.vert", f"stages/{stage}.frag", defines)
 
     def _set_uniforms(self, prog: moderngl.Program, p: Params, cam: Camera, size, offset) -> None:
         lay = reference.ring_layout(p)
@@ -205,100 +219,182 @@ class Renderer:
         for name, value in values.items():
             if name in prog:
                 prog[name].value = value
-        samples = np.zeros((16, 2), np.float32)
-        pattern = MSAA_PATTERNS.get(p["quality.msaa"])
-        if pattern:
-            samples[:len(pattern)] = np.array(pattern) / 16.0
-        for name, arr in (*ring_uniforms(lay).items(), ("uSampleOffsets", samples)):
+        for name, arr in ring_uniforms(lay).items():
             if name in prog:
                 prog[name].write(arr.tobytes())
-        if "uClipFromCamera" in prog:
-            prog["uClipFromCamera"].write(cam.clip_from_camera(w / h).T.copy().tobytes())
+        bvh = self.bvh
+        for name, value in (("uBvhLeaves", bvh.leaves), ("uBvhDepth", bvh.depth),
+                            ("uSegmentCount", self.scene.n_segments)):
+            if name in prog:
+                prog[name].value = value
 
-    def _draw(self, prog: moderngl.Program, p: Params, mode: str, rays: int | None = None) -> int:
-        """Draw every container, once per range of ``draw_ranges`` (brute mode: chunks of each container's
-        fibers; fast and exact: one draw unless a traversal could pass the loop budget). ``rays``: traversals
-        per fragment (default: the most ``p`` can ask for). Returns the draw count."""
+    def _vao(self, prog: moderngl.Program) -> moderngl.VertexArray:
+        """The fullscreen triangle (no vertex buffer: fullscreen.vert places it from gl_VertexID)."""
+        if id(prog) not in self._vaos:
+            self._vaos[id(prog)] = self.ctx.vertex_array(prog, [])
+        return self._vaos[id(prog)]
+
+    def _bind_scene(self) -> None:
+        self._buffers["nodes"].bind_to_storage_buffer(0)
+        self._buffers["order"].bind_to_storage_buffer(1)
+        self._buffers["segments"].bind_to_storage_buffer(2)
+        self._progress.bind_to_storage_buffer(3)
+
+    def _coverage(self, p: Params, cam: Camera, size) -> None:
+        """Depth 0 where some node box of a coarse level of the hierarchy projects (coverage.vert), 1
+        elsewhere: the walk passes run only where this drew."""
+        ctx = self.ctx
+        ctx.depth_func = "1"
+        prog = self.programs.get(ctx, "stages/coverage.vert", "stages/coverage.frag", {})
+        level = min(self.bvh.depth, COVERAGE_LEVEL)
+        prog["uCoverageFirst"].value = (1 << level) - 1
+        prog["uViewport"].value = tuple(size)
+        prog["uSceneFromCamera"].value = tuple(self.scene.origin - cam.position)
+        prog["uClipFromCamera"].write(cam.clip_from_camera(size[0] / size[1]).T.astype(np.float32).copy().tobytes())
+        self._vao(prog).render(moderngl.TRIANGLES, vertices=6, instances=1 << level)
+
+    def _walk_draws(self, prog: moderngl.Program, p: Params, cam: Camera, size, mode: str) -> tuple[int, int]:
+        """Walk until every covered pixel has its nearest fiber: per fiber range of ``draw_ranges`` (one
+        unless a layout could pass llvmpipe's loop budget), draws of the walk pass while it reports pixels
+        that need more containers than one draw walks. Returns (draws, pixels still unfinished after
+        MAX_DRAWS draws of a range: 0 unless something is broken)."""
+        ctx = self.ctx
         vao = self._vao(prog)
-        rays = traversals_per_fragment(p, mode) if rays is None else rays
-        ranges = draw_ranges(p, self.scene, mode, rays)
+        traversals = traversals_per_fragment(p, mode)
+        ranges = draw_ranges(p, self.scene, mode, traversals, walks=2)
         if "uRingOrder" in prog:
-            prog["uRingOrder"].value = int(len(ranges) > 1 or needs_ring_order(p, self.scene, mode, rays))
+            prog["uRingOrder"].value = int(len(ranges) > 1 or needs_ring_order(p, self.scene, mode, traversals,
+                                                                               walks=2))
+        prog["uDepth"].value = WALK_DEPTH
+        mark = self.programs.get(ctx, "stages/fullscreen_depth.vert", "stages/mark_done.frag", {})
+        draws, left = 0, 0
+        zero = bytes(4)
         for start, end in ranges:
             for name in ("uBruteRange", "uFiberRange"):
                 if name in prog:
                     prog[name].value = (start, end)
-            vao.render(moderngl.TRIANGLES, instances=self.scene.n_segments)
-        return len(ranges)
+            # every covered pixel walks each range: the mask is drawn anew (done pixels wrote WALK_DEPTH)
+            self._target(size, "walk").depth_mask = True
+            self._target(size, "walk").use()
+            self._target(size, "walk").clear(depth=1.0)
+            self._coverage(p, cam, size)
+            ctx.depth_func = ">"
+            walk = self._target(size, "walk")
+            for k in range(MAX_DRAWS):
+                prog["uRestart"].value = int(k == 0)
+                self._progress.write(zero)
+                walk.depth_mask = False         # early tests: a write here would land before the shader ran
+                walk.use()
+                vao.render(moderngl.TRIANGLES, vertices=3)
+                draws += 1
+                ctx.memory_barrier()            # the image stores land before the next draw reads them
+                left = int(np.frombuffer(self._progress.read(), np.uint32)[0])
+                if left == 0:
+                    break
+                walk.depth_mask = True
+                walk.use()
+                mark["uDepth"].value = WALK_DEPTH
+                self._vao(mark).render(moderngl.TRIANGLES, vertices=3)
+                ctx.memory_barrier()
+        return draws, left
+
+    def _pass(self, p: Params, cam: Camera, size, offset, mode: str, cost: bool,
+              region: tuple[int, int, int, int]) -> tuple[int, int]:
+        """One sample of the frame: the walk (state images), then, for the picture, the shading of each
+        pixel's winner into the "image" targets. Only ``region`` is cleared and drawn."""
+        ctx = self.ctx
+        ctx.scissor = region
+        state = self._target(size, "state")
+        for name in ("state clear", "cost clear") if cost else ("state clear",):
+            self._targets[(size, name)].use()
+            ctx.viewport = (0, 0) + size
+            self._targets[(size, name)].clear(0.0, 0.0, 0.0, 0.0)     # state all zero: a fresh pixel
+        for unit, tex in enumerate(state.color_attachments):
+            tex.bind_to_image(unit, read=True, write=True)
+        self._bind_scene()
+        ctx.enable(moderngl.DEPTH_TEST)
+        walk = self._target(size, "walk")
+        walk.use()
+        ctx.viewport = (0, 0) + size
+        prog = self.program(p, mode, cost=cost)
+        self._set_uniforms(prog, p, cam, size, offset)
+        draws, left = self._walk_draws(prog, p, cam, size, mode)
+        ctx.memory_barrier()
+        if not cost:
+            fbo = self._target(size, "image")
+            clear_targets(self._target(size, "image colors"))
+            fbo.use()
+            ctx.viewport = (0, 0) + size
+            ctx.depth_func = ">"                    # every pixel the walk reached: RESOLVE_DEPTH > its mark
+            resolve = self.program(p, mode, cost=False, stage="resolve")
+            self._set_uniforms(resolve, p, cam, size, offset)
+            resolve["uDepth"].value = RESOLVE_DEPTH
+            self._vao(resolve).render(moderngl.TRIANGLES, vertices=3)
+            draws += 1
+        ctx.disable(moderngl.DEPTH_TEST)
+        ctx.scissor = None
+        return draws, left
 
     def render(self, p: Params, cam: Camera, size: tuple[int, int], *, outputs=("color",),
-               offset=(0.0, 0.0), mode: str | None = None, antialias: bool = True) -> Frame:
+               offset=(0.0, 0.0), mode: str | None = None, antialias: bool = True,
+               region: tuple[int, int, int, int] | None = None) -> Frame:
         """Render the scene. ``outputs`` is any of color, ids, geom, cost, iters, draw (no read-back).
 
-        With ``antialias``, colour honours quality.supersample (n x n rays per pixel in the shader) or
-        quality.msaa (one ray per MSAA sample, shaded once). Brute force always casts one ray per pixel:
-        it is the reference for ids, and n^2 rays would cost n^2 times its loop budget.
+        With ``antialias``, colour honours quality.supersample (n x n stratified rays per pixel) or
+        quality.msaa (a ray through each of the standard MSAA sample positions); each ray finds its own
+        nearest fiber over all containers, the colour is their coverage-weighted mean and ids, normal and
+        depth come from the nearest of them. Brute force always casts one ray per pixel: it is the
+        reference for ids. ``region`` (x, y, w, h in pixels, GL's bottom-left origin) renders only that
+        rectangle: the rest of the targets keeps what earlier calls drew (tiled refinement).
         """
         if self.scene is None:
             raise RuntimeError("Renderer.render: call set_scene first")
         mode = mode or p["quality.mode"]
-        ctx = self.ctx
         frame = Frame()
         size = (int(size[0]), int(size[1]))
+        region = (0, 0) + size if region is None else tuple(int(v) for v in region)
         self.prepare_state()
-        supersample = p["quality.supersample"] if antialias and mode != "brute" else 1
-        msaa = self._msaa_samples(p) if antialias and mode != "brute" else 0
-        # "draw" renders the frame without reading anything back (timing, the viewer's own display)
-        wants_pass = {"ids", "geom", "draw"} & set(outputs) or ("color" in outputs and not msaa)
-        if wants_pass:
-            fbo = self._target(size, cost=False)
-            fbo.use()
-            ctx.viewport = (0, 0) + size
-            clear_targets(fbo)
-            ctx.enable(moderngl.DEPTH_TEST)
-            ctx.depth_func = "<"
-            prog = self.program(p, mode, cost=False, supersample=supersample)
-            self._set_uniforms(prog, p, cam, size, offset)
-            frame.draws += self._draw(prog, p, mode)
-            if "color" in outputs and not msaa:
-                frame.color, frame.coverage = _composite(_read(fbo, 0, 4, "f1", size), p)
+        offsets = [tuple(offset)]
+        if antialias and mode != "brute":
+            n, msaa = p["quality.supersample"], self._msaa_samples(p)
+            if msaa:
+                offsets = [(offset[0] + x / 16.0, offset[1] + y / 16.0) for x, y in MSAA_PATTERNS[msaa]]
+            elif n > 1:
+                offsets = [(offset[0] + x, offset[1] + y) for x, y in supersample_offsets(n)]
+        image_outputs = {"color", "ids", "geom", "draw"} & set(outputs)
+        if image_outputs:
+            rgba, ids, geom = None, None, None
+            fbo = self._target(size, "image")
+            for o in offsets:
+                draws, left = self._pass(p, cam, size, o, mode, False, region)
+                frame.draws += draws
+                frame.unfinished = max(frame.unfinished, left)
+                if len(offsets) == 1 and not ({"color", "ids", "geom"} & image_outputs):
+                    break                               # "draw": the targets hold the frame
+                sample = _read(fbo, 0, 4, "f1", size).astype(np.float64)
+                rgba = sample if rgba is None else rgba + sample
+                if {"ids", "geom"} & image_outputs or len(offsets) > 1:
+                    s_ids, s_geom = _read(fbo, 1, 4, "u4", size), _read(fbo, 2, 4, "f4", size)
+                    if ids is None:
+                        ids, geom = s_ids, s_geom
+                    else:                               # the nearest hit over the samples names the pixel
+                        nearer = (s_ids[..., 0] > 0) & ((ids[..., 0] == 0) | (s_geom[..., 3] < geom[..., 3]))
+                        ids[nearer], geom[nearer] = s_ids[nearer], s_geom[nearer]
+            if "color" in outputs:
+                frame.color, frame.coverage = _composite(rgba / len(offsets), p)
             if "ids" in outputs:
-                frame.ids = _read(fbo, 1, 4, "u4", size)
+                frame.ids = ids
             if "geom" in outputs:
-                frame.geom = _read(fbo, 2, 4, "f4", size)
-        if "color" in outputs and msaa:
-            ms, resolved = self._msaa_targets(size, msaa)
-            ms.use()
-            ctx.viewport = (0, 0) + size
-            ms.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-            ctx.enable(moderngl.DEPTH_TEST)
-            ctx.depth_func = "<"
-            prog = self.program(p, mode, cost=False, msaa=msaa)
-            self._set_uniforms(prog, p, cam, size, offset)
-            frame.draws += self._draw(prog, p, mode)
-            ctx.copy_framebuffer(resolved, ms)
-            frame.color, frame.coverage = _composite(_read(resolved, 0, 4, "f1", size), p)
-        for kind in ("cost", "iters"):
-            if kind not in outputs:
-                continue
-            fbo = self._target(size, cost=True)
-            fbo.use()
-            ctx.viewport = (0, 0) + size
-            fbo.clear(0.0, 0.0, 0.0, 0.0)
-            ctx.disable(moderngl.DEPTH_TEST)
-            ctx.enable(moderngl.BLEND)
-            ctx.blend_func = moderngl.ONE, moderngl.ONE
-            ctx.blend_equation = moderngl.FUNC_ADD if kind == "cost" else moderngl.MAX
-            prog = self.program(p, mode, cost=True)
-            self._set_uniforms(prog, p, cam, size, offset)
-            frame.draws += self._draw(prog, p, mode)
-            data = _read(fbo, 0, 4, "f4", size)
-            if kind == "cost":
-                frame.cost = data
-            else:
-                frame.iters = data[..., 3]
-            ctx.blend_equation = moderngl.FUNC_ADD
-            ctx.disable(moderngl.BLEND)
+                frame.geom = geom
+        if {"cost", "iters"} & set(outputs):
+            draws, left = self._pass(p, cam, size, offsets[0], mode, True, region)
+            frame.draws += draws
+            state = self._target(size, "state")
+            cost, walk = _read(state, 3, 4, "f4", size), _read(state, 4, 4, "f4", size)
+            if "cost" in outputs:
+                frame.cost, frame.walk = cost, walk
+            if "iters" in outputs:
+                frame.iters = walk[..., 3]
         return frame
 
 
@@ -321,10 +417,9 @@ def ring_uniforms(lay: reference.RingLayout) -> dict[str, np.ndarray]:
 
 
 def traversals_per_fragment(p: Params, mode: str) -> int:
-    """The most traversals one fragment can run: a ray per supersample or MSAA sample (brute casts one),
-    twice that with traced shadows (each hit sends a shadow ray through the same container)."""
-    rays = 1 if mode == "brute" else max(p["quality.supersample"] ** 2, p["quality.msaa"], 1)
-    return rays * (2 if p["look.self_shadow"] == "traced" else 1)
+    """Traversals per container one ray can run: one, two with traced shadows (each hit sends a shadow ray
+    through the same container). Antialiasing draws each sample's ray in a pass of its own."""
+    return 2 if p["look.self_shadow"] == "traced" else 1
 
 
 # Loop passes one traversal may spend in fast and exact modes, per draw: what the budget leaves once the
@@ -380,13 +475,13 @@ def candidate_caps(p: Params, scene: Scene) -> tuple[np.ndarray, int]:
     return caps, per_test
 
 
-def _loop_budget(p: Params, rays: int) -> int:
-    """Loop passes one traversal may spend in one draw: the budget less the shading's share and the
-    ring, arc and canary loops."""
-    return (LOOP_CAP - LOOP_HEADROOM) // max(1, rays) - (16 * p["fibers.rings"] + 16)
+def _loop_budget(p: Params, rays: int, walks: int = 0) -> int:
+    """Loop passes one traversal may spend in one draw: the budget less the shading's share, the walks
+    through the hierarchy (WALK_CAP box tests each, raycast.frag) and the ring, arc and canary loops."""
+    return (LOOP_CAP - LOOP_HEADROOM - walks * (WALK_CAP + 1)) // max(1, rays) - (16 * p["fibers.rings"] + 16)
 
 
-def needs_ring_order(p: Params, scene: Scene, mode: str, rays: int = 1) -> bool:
+def needs_ring_order(p: Params, scene: Scene, mode: str, rays: int = 1, walks: int = 0) -> bool:
     """Whether one draw of every fiber needs the traversal's loops after the ring loop to go by ring index
     (uRingOrder). Each lane's own order is cheaper, but then lanes of a batch can visit different rings at
     one iteration, and the batch pays the costliest ring's candidates at every iteration: fronts and
@@ -399,10 +494,10 @@ def needs_ring_order(p: Params, scene: Scene, mode: str, rays: int = 1) -> bool:
         worst = tests.sum() + (p["fibers.rings"] + 1) * tests.max()
     else:
         worst = 2 * tests.sum() + 2 * p["fibers.rings"] * tests.max()
-    return bool(worst > _loop_budget(p, rays))
+    return bool(worst > _loop_budget(p, rays, walks))
 
 
-def draw_ranges(p: Params, scene: Scene, mode: str, rays: int = 1) -> list[tuple[int, int]]:
+def draw_ranges(p: Params, scene: Scene, mode: str, rays: int = 1, walks: int = 0) -> list[tuple[int, int]]:
     """Ranges [start, end) of a container's flat fiber numbering, one draw each, such that no SIMD batch of
     fragments passes llvmpipe's loop budget: it would stop every loop in silence and lose fibers.
 
@@ -414,14 +509,18 @@ def draw_ranges(p: Params, scene: Scene, mode: str, rays: int = 1) -> list[tuple
     fibers, or curled fibers whose reach is the whole ring, need several, and the depth test keeps the
     nearest hit across them as it does in brute mode. The bound holds with the loops after the ring loop in
     ring order (uRingOrder), which ``Renderer._draw`` sets whenever there is more than one draw or
-    ``needs_ring_order``. ``rays``: traversals per fragment."""
+    ``needs_ring_order``. ``rays``: traversals per invocation (containers per draw times rays per
+    container); ``walks``: walks through the container hierarchy per invocation."""
     lay = reference.ring_layout(p)
     total = lay.fibers_per_container
     if mode == "brute":
-        chunk = BRUTE_CHUNK_SHAPED if is_shaped(p) else BRUTE_CHUNK
+        # loop passes per fiber: one (straight), up to four arcs of a chord loop each (curved)
+        per_fiber = 4 * (MAX_SUB + 2) if is_shaped(p) else 1
+        full = BRUTE_CHUNK_SHAPED if is_shaped(p) else BRUTE_CHUNK      # fibers for one traversal, no walk
+        chunk = max(1, (full * per_fiber - walks * (WALK_CAP + 1)) // (per_fiber * max(1, rays)))
         return [(start, min(total, start + chunk)) for start in range(0, total, chunk)]
     caps, per_test = candidate_caps(p, scene)
-    budget = _loop_budget(p, rays)
+    budget = _loop_budget(p, rays, walks)
     visits, deepest = (2, 2) if not is_shaped(p) else (4, 0)    # per ring; per draw, at its costliest ring
     if (visits + deepest) * per_test > budget:
         raise ValueError(f"{rays} traversals per fragment leave no loop budget for one fiber test")
@@ -461,18 +560,32 @@ def release_framebuffers(parking: moderngl.Framebuffer, targets: dict) -> None:
     rebinds the current framebuffer whenever it creates one, and rebinding a released one is an invalid
     operation that the next test or frame would inherit."""
     parking.use()
-    for fbo in targets.values():
-        for a in fbo.color_attachments:
-            a.release()
-        if fbo.depth_attachment:
-            fbo.depth_attachment.release()
-        fbo.release()
+    owned: dict[int, object] = {}           # framebuffers may share attachments: release each once
+    for obj in targets.values():
+        if isinstance(obj, moderngl.Framebuffer):
+            for a in (*obj.color_attachments, obj.depth_attachment):
+                if a is not None:
+                    owned[id(a)] = a
+        owned[id(obj)] = obj
+    for obj in owned.values():
+        if not isinstance(obj, moderngl.Framebuffer):
+            continue
+        obj.release()
+    for obj in owned.values():
+        if not isinstance(obj, moderngl.Framebuffer):
+            obj.release()
     targets.clear()
 
 
 def scene_gpu_bytes(scene: Scene) -> int:
-    """What ``Renderer.set_scene`` allocates for ``scene``: the segments plus the shared proxy rectangle."""
-    return scene.nbytes + _QUAD.nbytes
+    """What ``Renderer.set_scene`` allocates for ``scene``: the segments, the hierarchy's boxes and order."""
+    return scene.nbytes + build_bvh(scene).nbytes if scene.n_segments else 80 + 32 + 4
+
+
+def frame_gpu_bytes(size: tuple[int, int]) -> int:
+    """Per-pixel targets of one frame: colour (4 B), ids (16 B), geometry (16 B), walk state (16 B); the
+    cost output adds 32 B per pixel while it is rendered."""
+    return int(size[0]) * int(size[1]) * (4 + 16 + 16 + 16)
 
 
 def supersample_offsets(n: int) -> list[tuple[float, float]]:
@@ -485,10 +598,10 @@ def _upscale(frame: Frame, size: tuple[int, int]) -> Frame:
     from PIL import Image
 
     w, h = size
-    out = Frame(draws=frame.draws)
+    out = Frame(draws=frame.draws, unfinished=frame.unfinished)
     if frame.color is not None:
         out.color = np.asarray(Image.fromarray(frame.color).resize(size, Image.BILINEAR))
-    for name in ("coverage", "ids", "geom", "cost", "iters"):
+    for name in ("coverage", "ids", "geom", "cost", "walk", "iters"):
         a = getattr(frame, name)
         if a is not None:
             ys = (np.arange(h) * a.shape[0] // h)[:, None]
@@ -498,7 +611,8 @@ def _upscale(frame: Frame, size: tuple[int, int]) -> Frame:
 
 
 def _composite(rgba: np.ndarray, p: Params) -> tuple[np.ndarray, np.ndarray]:
-    """Premultiplied fiber colour over the background (8-bit, display space), and the coverage."""
+    """Premultiplied fiber colour (8-bit levels, display space; the mean of several samples may be
+    fractional) over the background, and the coverage."""
     bg = np.round(np.clip(np.asarray(p["look.background"]), 0, 1) ** (1 / 2.2) * 255)
     a = rgba[..., 3:4].astype(np.float64) / 255.0
     color = np.clip(np.round(rgba[..., :3] + (1.0 - a) * bg), 0, 255).astype(np.uint8)

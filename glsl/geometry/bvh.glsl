@@ -1,0 +1,163 @@
+// bvh.glsl: the containers a ray enters, nearest first, from the hierarchy of app/render/bvh.py.
+//   Segment   fetch_segment(uint index)                                  scene segment, camera-relative
+//   void      walk_to_leaf(inout uint node, inout uint trail, vec3 rd, float tNear, float tCut)
+//   void      pop(inout uint node, inout uint trail)
+//   bool      key_before(float ta, uint ia, float tb, uint ib)
+// The tree is implicit and complete: node i has children 2i + 1 and 2i + 2, and leaf j (node
+// uBvhLeaves - 1 + j) holds sorted segment j, so every step of the walk is the same two bound tests and
+// the loop body stays short (llvmpipe runs every branch of a loop body for the whole SIMD batch, and
+// every buffer read is a gather over its lanes). Inner nodes hold boxes, leaves their container's
+// bounding cylinder. The walk keeps no stack: bit l of `trail` says the far child of the level-l node on
+// the current path is still to visit, and the node to resume at follows from the current node's index
+// (heap arithmetic), so a pixel's whole place in the walk is two integers: it can stop after any leaf
+// and go on in the next draw (walk.frag). A bound the ray enters after the nearest fiber found so far
+// holds no nearer one.
+// Twin: app/render/bvh.py (segment_cylinders, segment_boxes, the layout); tests/render/test_bvh.py walks
+// the same tree in numpy.
+
+#ifndef BVH_GLSL
+#define BVH_GLSL
+
+#include "common/epsilon.glsl"
+#include "geometry/container.glsl"
+
+#ifndef WALK_CAP
+#define WALK_CAP 4096       // walk steps per call; one that runs out is reported (walk.frag, cost output)
+#endif
+
+layout(std430, binding = 0) readonly buffer BvhNodes { vec4 bvhNodes[]; };       // two per node
+layout(std430, binding = 1) readonly buffer BvhOrder { uint bvhOrder[]; };       // scene index per leaf
+layout(std430, binding = 2) readonly buffer SegmentData { vec4 segmentData[]; }; // five per scene segment
+
+uniform int uBvhLeaves;         // leaves: a power of two
+uniform int uBvhDepth;          // log2(uBvhLeaves)
+uniform int uSegmentCount;
+uniform vec3 uSceneFromCamera;  // scene origin minus camera position: the tree and segments are scene-relative
+
+const uint WALK_DONE = 0xFFFFFFFFu;
+int gWalkSteps = 0;             // walk steps (two bound tests each), all walks of this invocation
+bool gWalkRanOut = false;
+
+// The container segment as container.glsl builds it from the renderer's five vec4 per segment.
+Segment fetch_segment(uint index) {
+    int k = int(index) * 5;
+    vec4 a = segmentData[k];
+    vec4 b = segmentData[k + 1];
+    return make_segment(vec4(a.xyz + uSceneFromCamera, a.w), vec4(b.xyz + uSceneFromCamera, b.w),
+                        segmentData[k + 2], segmentData[k + 3], segmentData[k + 4]);
+}
+
+// Key order for hits in different containers: distance, then scene index (the lower index wins a tie
+// in every mode).
+bool key_before(float ta, uint ia, float tb, uint ib) {
+    return ta < tb || (ta == tb && ia < ib);
+}
+
+// [enter, exit] of o + t d inside the infinite tube of radius r about the axis, for o and d already
+// perpendicular to it: circle_interval's stable roots (intervals.glsl) with the 3D cross product.
+vec2 tube_interval(vec3 o, vec3 d, float r) {
+    float a = dot(d, d);
+    float b = dot(o, d);
+    float len = length(o);
+    float cc = (len - r) * (len + r);
+    float crs = length(cross(o, d));
+    float ra = sqrt(a) * r;
+    float disc = (ra - crs) * (ra + crs);
+    float q = -(b + (b >= 0.0 ? 1.0 : -1.0) * sqrt(max(disc, 0.0)));
+    float ta = q / a;
+    float tb = q != 0.0 ? cc / q : ta;
+    vec2 along = cc <= 0.0 ? vec2(-INF, INF) : vec2(INF, -INF);    // parallel to the axis
+    return a == 0.0 ? along : (disc < 0.0 ? vec2(INF, -INF) : vec2(min(ta, tb), max(ta, tb)));
+}
+
+// Entry and exit t of the ray 0 + t rd (camera at the origin) through inner node i's box; an empty
+// node gives entry > exit.
+vec2 box_interval(int i, vec3 invD) {
+    vec3 p = bvhNodes[2 * i].xyz + uSceneFromCamera;
+    vec3 q = bvhNodes[2 * i + 1].xyz + uSceneFromCamera;
+    vec3 ta = p * invD;
+    vec3 tb = q * invD;
+    vec3 tn = min(ta, tb);
+    vec3 tf = max(ta, tb);
+    return p.x <= q.x ? vec2(max(max(tn.x, tn.y), tn.z), min(min(tf.x, tf.y), tf.z)) : vec2(INF, -INF);
+}
+
+// ... through leaf i's cylinder (bvh.py: base a.xyz, radius a.w, unit axis b.xyz, length b.w); the ray
+// seen along the axis is a 2D ray from -base, and its height along the axis stays within [0, length].
+vec2 cylinder_interval(int i, vec3 rd) {
+    vec4 a = bvhNodes[2 * i];
+    vec4 b = bvhNodes[2 * i + 1];
+    vec3 o = -(a.xyz + uSceneFromCamera);
+    vec3 ez = b.xyz;
+    float oz = dot(o, ez);
+    float dz = dot(rd, ez);
+    vec2 c = tube_interval(o - oz * ez, rd - dz * ez, a.w);
+    vec2 z = slab(oz, dz, 0.0, b.w);
+    return a.w >= 0.0 ? vec2(max(c.x, z.x), min(c.y, z.y)) : vec2(INF, -INF);
+}
+
+vec2 node_interval(int i, vec3 rd, vec3 invD, bool leaf) {
+    return leaf ? cylinder_interval(i, rd) : box_interval(i, invD);
+}
+
+int node_level(uint node) {
+    return findMSB(node + 1u);
+}
+
+bool bound_entered(vec2 iv, float tNear, float tCut) {
+    return iv.x <= iv.y && iv.y >= tNear && iv.x <= tCut;
+}
+
+// Leave the current node for the far child of the deepest level on its path that still has one (heap
+// arithmetic: the ancestor of node i at level k is ((i + 1) >> (level(i) - k)) - 1), or WALK_DONE.
+void pop(inout uint node, inout uint trail) {
+    int resume = findMSB(trail);                                    // -1: nothing left
+    int up = node_level(node) - resume;
+    uint ancestor = ((node + 1u) >> uint(max(up - 1, 0))) - 1u;     // the near child at level resume + 1
+    uint far = (ancestor & 1u) != 0u ? ancestor + 1u : ancestor - 1u;
+    node = resume >= 0 ? far : WALK_DONE;
+    trail &= ~(1u << uint(max(resume, 0)));
+}
+
+// Walk on to the next leaf whose cylinder the ray enters no later than tCut (depth first, the nearer
+// child first), or to the end. Standing on a leaf, the walk stays: that leaf is the next one (the caller
+// moves past it with pop once it is traversed). Whatever the walk skips is entered after tCut, and tCut
+// only falls as nearer fibers are found, so nothing skipped can hold the nearest fiber.
+void walk_to_leaf(inout uint node, inout uint trail, vec3 rd, float tNear, float tCut) {
+    // a zero component gives a large finite reciprocal: boxes then compare as slabs, with no NaN
+    vec3 invD = 1.0 / mix(max(abs(rd), vec3(1e-30)), min(-abs(rd), vec3(-1e-30)), lessThan(rd, vec3(0.0)));
+    if (node == 0u && trail == 0u) {
+        // the start: the root itself (a tree of one leaf is one cylinder)
+        vec2 root = node_interval(0, rd, invD, uBvhDepth == 0);
+        node = uSegmentCount > 0 && bound_entered(root, tNear, tCut) ? 0u : WALK_DONE;
+    }
+    int steps = 0;
+    for (; node != WALK_DONE && node_level(node) < uBvhDepth && steps < WALK_CAP; steps++) {
+        int level = node_level(node);
+        bool leaves = level + 1 == uBvhDepth;
+        int left = 2 * int(node) + 1;
+        // neighbouring rays walk the same levels, so a batch mostly takes one side of this branch
+        vec2 l, r;
+        if (leaves) {
+            l = cylinder_interval(left, rd);
+            r = cylinder_interval(left + 1, rd);
+        } else {
+            l = box_interval(left, invD);
+            r = box_interval(left + 1, invD);
+        }
+        bool inL = bound_entered(l, tNear, tCut);
+        bool inR = bound_entered(r, tNear, tCut);
+        trail |= (inL && inR) ? (1u << uint(level)) : 0u;
+        uint near = uint((inL && (!inR || l.x <= r.x)) ? left : left + 1);
+        uint upNode = node;
+        uint upTrail = trail;
+        pop(upNode, upTrail);
+        bool down = inL || inR;
+        node = down ? near : upNode;
+        trail = down ? trail : upTrail;
+    }
+    gWalkSteps += steps;
+    gWalkRanOut = gWalkRanOut || (node != WALK_DONE && node_level(node) < uBvhDepth);
+}
+
+#endif

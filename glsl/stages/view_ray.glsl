@@ -1,0 +1,19 @@
+// view_ray.glsl: the camera ray through a pixel, camera at the origin (positions are camera-relative).
+//   vec3 view_ray(vec2 offset)     offset: sub-pixel, in pixels about the pixel centre
+
+#ifndef VIEW_RAY_GLSL
+#define VIEW_RAY_GLSL
+
+uniform vec3 uCamRight;         // world-space camera basis, scaled by tan(fov/2) (and aspect)
+uniform vec3 uCamUp;
+uniform vec3 uCamForward;
+uniform vec2 uViewport;
+uniform vec2 uPixelOffset;      // sub-pixel offset of the ray (antialiasing, stability tests)
+uniform float uNear;
+
+vec3 view_ray(vec2 offset) {
+    vec2 ndc = (gl_FragCoord.xy + offset) / uViewport * 2.0 - 1.0;
+    return normalize(uCamForward + ndc.x * uCamRight + ndc.y * uCamUp);
+}
+
+#endif
