@@ -70,13 +70,7 @@ class FloatRenderer(Renderer):
     """The renderer with its colour target in float32, so a NaN or an Inf in the shading shows instead of
     being clamped to 8 bits. Everything else is the renderer's own path."""
 
-    def _target(self, size: tuple[int, int], cost: bool) -> moderngl.Framebuffer:
-        key = (size, cost)
-        if key not in self._targets and not cost:
-            att = [self.ctx.texture(size, 4, dtype="f4"), self.ctx.texture(size, 4, dtype="u4"),
-                   self.ctx.texture(size, 4, dtype="f4")]
-            self._targets[key] = self.ctx.framebuffer(att, self.ctx.depth_renderbuffer(size))
-        return super()._target(size, cost)
+    COLOR_DTYPE = "f4"
 
     def render_float(self, p: Params, cam: Camera, size: tuple[int, int], mode: str = "exact",
                      offset=(0.0, 0.0), iters: bool = False) -> FloatFrame:

@@ -88,6 +88,8 @@ def light_direction(p: Params) -> np.ndarray:
 
 
 class Renderer:
+    COLOR_DTYPE = "f1"      # the picture's target: premultiplied RGBA8 (extremes bench: float32, NaN shows)
+
     def __init__(self, ctx: moderngl.Context, programs: ProgramCache | None = None):
         self.ctx = ctx
         self.programs = programs or ProgramCache()
@@ -146,7 +148,7 @@ class Renderer:
                 depth = self._targets[(size, "depth")] = self.ctx.depth_renderbuffer(size)
             tex = self.ctx.texture
             if kind == "image":
-                colors = [tex(size, 4, dtype="f1"), tex(size, 4, dtype="u4"), tex(size, 4, dtype="f4")]
+                colors = [tex(size, 4, dtype=self.COLOR_DTYPE), tex(size, 4, dtype="u4"), tex(size, 4, dtype="f4")]
                 self._targets[(size, "image colors")] = self.ctx.framebuffer(colors)   # cleared without depth
                 self._targets[key] = self.ctx.framebuffer(colors, depth)
                 self._targets[key].depth_mask = False     # the resolve reads the mask, never writes it
@@ -234,6 +236,13 @@ class Renderer:
             self._vaos[id(prog)] = self.ctx.vertex_array(prog, [])
         return self._vaos[id(prog)]
 
+    def _use(self, fbo: moderngl.Framebuffer, region: tuple[int, int, int, int]) -> None:
+        """Bind ``fbo`` with the pass's viewport and scissor. moderngl keeps both per framebuffer and sets
+        them on the framebuffer bound at the time, so each one is set after its own use()."""
+        fbo.use()
+        self.ctx.viewport = (0, 0) + tuple(fbo.size)
+        self.ctx.scissor = region
+
     def _bind_scene(self) -> None:
         self._buffers["nodes"].bind_to_storage_buffer(0)
         self._buffers["order"].bind_to_storage_buffer(1)
@@ -248,12 +257,14 @@ class Renderer:
         prog = self.programs.get(ctx, "stages/coverage.vert", "stages/coverage.frag", {})
         level = min(self.bvh.depth, COVERAGE_LEVEL)
         prog["uCoverageFirst"].value = (1 << level) - 1
+        prog["uBvhLeaves"].value = self.bvh.leaves
         prog["uViewport"].value = tuple(size)
         prog["uSceneFromCamera"].value = tuple(self.scene.origin - cam.position)
         prog["uClipFromCamera"].write(cam.clip_from_camera(size[0] / size[1]).T.astype(np.float32).copy().tobytes())
         self._vao(prog).render(moderngl.TRIANGLES, vertices=6, instances=1 << level)
 
-    def _walk_draws(self, prog: moderngl.Program, p: Params, cam: Camera, size, mode: str) -> tuple[int, int]:
+    def _walk_draws(self, prog: moderngl.Program, p: Params, cam: Camera, size, mode: str,
+                    region: tuple[int, int, int, int]) -> tuple[int, int]:
         """Walk until every covered pixel has its nearest fiber: per fiber range of ``draw_ranges`` (one
         unless a layout could pass llvmpipe's loop budget), draws of the walk pass while it reports pixels
         that need more containers than one draw walks. Returns (draws, pixels still unfinished after
@@ -275,7 +286,7 @@ class Renderer:
                     prog[name].value = (start, end)
             # every covered pixel walks each range: the mask is drawn anew (done pixels wrote WALK_DEPTH)
             self._target(size, "walk").depth_mask = True
-            self._target(size, "walk").use()
+            self._use(self._target(size, "walk"), region)
             self._target(size, "walk").clear(depth=1.0)
             self._coverage(p, cam, size)
             ctx.depth_func = ">"
@@ -284,7 +295,7 @@ class Renderer:
                 prog["uRestart"].value = int(k == 0)
                 self._progress.write(zero)
                 walk.depth_mask = False         # early tests: a write here would land before the shader ran
-                walk.use()
+                self._use(walk, region)
                 vao.render(moderngl.TRIANGLES, vertices=3)
                 draws += 1
                 ctx.memory_barrier()            # the image stores land before the next draw reads them
@@ -292,7 +303,7 @@ class Renderer:
                 if left == 0:
                     break
                 walk.depth_mask = True
-                walk.use()
+                self._use(walk, region)
                 mark["uDepth"].value = WALK_DEPTH
                 self._vao(mark).render(moderngl.TRIANGLES, vertices=3)
                 ctx.memory_barrier()
@@ -303,28 +314,28 @@ class Renderer:
         """One sample of the frame: the walk (state images), then, for the picture, the shading of each
         pixel's winner into the "image" targets. Only ``region`` is cleared and drawn."""
         ctx = self.ctx
-        ctx.scissor = region
         state = self._target(size, "state")
-        for name in ("state clear", "cost clear") if cost else ("state clear",):
-            self._targets[(size, name)].use()
-            ctx.viewport = (0, 0) + size
-            self._targets[(size, name)].clear(0.0, 0.0, 0.0, 0.0)     # state all zero: a fresh pixel
+        used = [self._targets[(size, name)] for name in (("state clear", "cost clear") if cost else ("state clear",))]
+        for fbo in used:
+            self._use(fbo, region)
+            fbo.clear(0.0, 0.0, 0.0, 0.0)     # state all zero: a fresh pixel
         for unit, tex in enumerate(state.color_attachments):
             tex.bind_to_image(unit, read=True, write=True)
         self._bind_scene()
         ctx.enable(moderngl.DEPTH_TEST)
         walk = self._target(size, "walk")
-        walk.use()
-        ctx.viewport = (0, 0) + size
+        used.append(walk)
+        self._use(walk, region)
         prog = self.program(p, mode, cost=cost)
         self._set_uniforms(prog, p, cam, size, offset)
-        draws, left = self._walk_draws(prog, p, cam, size, mode)
+        draws, left = self._walk_draws(prog, p, cam, size, mode, region)
         ctx.memory_barrier()
         if not cost:
             fbo = self._target(size, "image")
-            clear_targets(self._target(size, "image colors"))
-            fbo.use()
-            ctx.viewport = (0, 0) + size
+            self._use(self._targets[(size, "image colors")], region)
+            clear_targets(self._targets[(size, "image colors")])
+            used += [self._targets[(size, "image colors")], fbo]
+            self._use(fbo, region)
             ctx.depth_func = ">"                    # every pixel the walk reached: RESOLVE_DEPTH > its mark
             resolve = self.program(p, mode, cost=False, stage="resolve")
             self._set_uniforms(resolve, p, cam, size, offset)
@@ -332,7 +343,8 @@ class Renderer:
             self._vao(resolve).render(moderngl.TRIANGLES, vertices=3)
             draws += 1
         ctx.disable(moderngl.DEPTH_TEST)
-        ctx.scissor = None
+        for fbo in used:                            # leave no scissor behind on a target others read or clear
+            fbo.scissor = None
         return draws, left
 
     def render(self, p: Params, cam: Camera, size: tuple[int, int], *, outputs=("color",),
@@ -371,8 +383,9 @@ class Renderer:
                 frame.unfinished = max(frame.unfinished, left)
                 if len(offsets) == 1 and not ({"color", "ids", "geom"} & image_outputs):
                     break                               # "draw": the targets hold the frame
-                sample = _read(fbo, 0, 4, "f1", size).astype(np.float64)
-                rgba = sample if rgba is None else rgba + sample
+                if "color" in outputs:
+                    sample = _read(fbo, 0, 4, "f1", size).astype(np.float64)
+                    rgba = sample if rgba is None else rgba + sample
                 if {"ids", "geom"} & image_outputs or len(offsets) > 1:
                     s_ids, s_geom = _read(fbo, 1, 4, "u4", size), _read(fbo, 2, 4, "f4", size)
                     if ids is None:

@@ -83,7 +83,7 @@ class ViewportRenderer:
         self.has_ids = False                          # ids/geom of the current size are valid
         self.has_cost = False
         self.cost_stats: CostStats | None = None
-        self.direct_ok = all(hasattr(renderer, n) for n in ("_target", "_set_uniforms", "_draw", "program"))
+        self.direct_ok = True       # Renderer.render(outputs=("draw",)) leaves the frame in renderer.targets
         self.fallback_reason: str | None = None if self.direct_ok else "Renderer internals changed"
         self._accum: moderngl.Framebuffer | None = None
         self._uploads: dict[str, moderngl.Texture] = {}
@@ -185,7 +185,7 @@ class ViewportRenderer:
                 self.direct_ok = False
                 self.fallback_reason = f"direct frame path unavailable ({e}); using readback"
                 return self.render_sample(p, cam, mode, offset, "readback", with_ids)
-            color_tex = self.renderer._target(self.size, cost=False).color_attachments[0]
+            color_tex = self.renderer.targets(self.size).color_attachments[0]
             self._ids_from = "direct"
         else:
             outputs = ("color", "ids", "geom") if with_ids else ("color",)
@@ -203,16 +203,8 @@ class ViewportRenderer:
         return Timing(wall, gpu)
 
     def _draw(self, p: Params, cam: Camera, mode: str, offset) -> None:
-        """Draw into the renderer's own targets without reading back: ``Renderer.render(outputs=("draw",))``
-        where the renderer offers it (it reports draws > 0), else the renderer's steps called here."""
-        if self._draw_output is not False:
-            frame = self.renderer.render(p, cam, self.size, outputs=("draw",), offset=offset, mode=mode,
-                                         antialias=False)
-            if frame.draws > 0:
-                self._draw_output = True
-                return
-            self._draw_output = False    # this renderer ignores "draw": do its steps ourselves
-        self._draw_direct(p, cam, mode, offset)
+        """Draw into the renderer's own targets without reading back (``Renderer.render(outputs=("draw",))``)."""
+        self.renderer.render(p, cam, self.size, outputs=("draw",), offset=offset, mode=mode, antialias=False)
 
     def _timed(self):
         query = self._query
@@ -232,25 +224,6 @@ class ViewportRenderer:
                         self_inner.ns = int(query.elapsed)
                 return False
         return _Q()
-
-    def _draw_direct(self, p: Params, cam: Camera, mode: str, offset) -> None:
-        """Renderer.render's drawing steps without its clears and read-back (for renderers without
-        outputs=("draw",)); the targets are cleared as the renderer clears them (renderer.clear_targets)."""
-        r, ctx, size = self.renderer, self.ctx, self.size
-        if r.scene is None:
-            raise RuntimeError("no scene")
-        fbo = r._target(size, cost=False)
-        fbo.use()
-        ctx.viewport = (0, 0) + size
-        clear_targets(fbo)
-        # the renderer's own state and draw (Renderer.render minus read-back)
-        r.prepare_state()
-        ctx.enable(moderngl.DEPTH_TEST)
-        ctx.depth_func = "<"
-        prog = r.program(p, mode, cost=False)
-        r._set_uniforms(prog, p, cam, size, offset)
-        r._draw(prog, p, mode)
-        ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
 
     def _dummies(self) -> dict[str, moderngl.Texture]:
         """1x1 stand-ins bound where a view has nothing (a sampler must never see an unbound unit)."""
@@ -363,7 +336,7 @@ class ViewportRenderer:
         shown.filter = (moderngl.NEAREST, moderngl.NEAREST) if one_to_one else (moderngl.LINEAR, moderngl.LINEAR)
         shown.use(0)
         if self._ids_from == "direct" and self.direct_ok and self.samples > 0:
-            fbo = self.renderer._target(self.size, cost=False)
+            fbo = self.renderer.targets(self.size)
             ids, geom = fbo.color_attachments[1], fbo.color_attachments[2]
             ids.filter = (moderngl.NEAREST, moderngl.NEAREST)   # integer textures sample only NEAREST
         else:
