@@ -191,6 +191,9 @@ SPEC: tuple[Param, ...] = (
     P("quality.supersample", int, 1, "n x n stratified rays per pixel", 1, 4),
     P("quality.msaa", int, 0, "MSAA samples for coverage (0 = off)", 0, 8),
     P("quality.render_scale", float, 1.0, "fraction of the output resolution actually ray cast", 0.1, 1.0),
+    P("quality.visibility", str, "auto", "how a pixel finds its containers: proxies (each container drawn, "
+      "a traversal per layer: fastest where few overlap), walk (a hierarchy walked nearest first: fastest "
+      "for dense grooms) or auto (by the layers the proxies would stack)", choices=("auto", "proxies", "walk")),
 
     # --- camera: an orbit about a target; positions are float64 on the CPU ---
     P("camera.azimuth", float, 30.0, "orbit angle about the up axis", -360.0, 360.0, "degrees"),

@@ -59,7 +59,16 @@ MSAA_PATTERNS = {
     8: [(1, -3), (-1, 3), (5, 1), (-3, -5), (-5, 5), (-7, -1), (3, 7), (7, -7)],
 }
 MODES = {"fast": 0, "exact": 1, "brute": 2}
+
+# The proxy rectangle's corners as two triangles (glsl/stages/container.vert places them per segment).
+_QUAD = np.array([[0, 0], [1, 0], [1, 1], [0, 0], [1, 1], [0, 1]], dtype=np.float32)
 WALK_CAP = 4096                   # box tests per walk (glsl/geometry/bvh.glsl)
+VISIBILITY = ("auto", "proxies", "walk")
+# auto: the walk once the proxies would stack this many layers per covered pixel (proxy_layers). Measured
+# on llvmpipe, 640x360 exact, CPU time per frame, proxies vs walk: default preset (2.5 layers) 55 vs 90 ms,
+# carpet (5.9) 272 vs 541, fur-ball (11.7) 426 vs 388, sintel (11.1) 470 vs 317, Ratboy (10.4) 465 vs 207,
+# harolongo (157) 5,800 vs 540 (docs/performance.md, "Two ways to find a pixel's containers").
+WALK_LAYERS = 8.0
 MAX_DRAWS = 512                   # draws of one sample and fiber range before the renderer gives up
 COVERAGE_LEVEL = 6                # hierarchy level whose node boxes mark the pixels to walk (<= 64 boxes)
 WALK_DEPTH, RESOLVE_DEPTH = 0.5, 0.75     # window depths of the fullscreen passes (see _walk_draws)
@@ -97,7 +106,9 @@ class Renderer:
         self.bvh: ContainerBvh | None = None
         self._buffers: dict[str, moderngl.Buffer] = {}
         self._progress = ctx.buffer(reserve=4)
-        self._vaos: dict[int, moderngl.VertexArray] = {}
+        self._quad = ctx.buffer(_QUAD.tobytes())
+        self._vaos: dict[tuple, moderngl.VertexArray] = {}
+        self._layers: tuple[tuple, float] | None = None     # (camera and size, proxy_layers) of the last frame
         self._targets: dict[tuple, moderngl.Framebuffer] = {}
         self._parking = ctx.framebuffer(ctx.renderbuffer((1, 1)))   # bound while targets are released
 
@@ -107,6 +118,10 @@ class Renderer:
         drawn: five vec4 per segment, two per hierarchy node, one index per segment."""
         for buf in self._buffers.values():
             buf.release()
+        for vao in self._vaos.values():
+            vao.release()
+        self._vaos.clear()
+        self._layers = None
         self.scene = scene
         self.bvh = build_bvh(scene)
         data = scene.segments if scene.n_segments else np.zeros((1, 20), np.float32)
@@ -118,7 +133,7 @@ class Renderer:
     @property
     def scene_gpu_bytes(self) -> int:
         """Bytes of GPU buffers that hold the scene: container segments plus their hierarchy."""
-        return sum(b.size for b in self._buffers.values())
+        return sum(b.size for b in self._buffers.values()) + self._quad.size
 
     def frame_gpu_bytes(self, size: tuple[int, int]) -> int:
         """Bytes of the per-pixel targets of a frame at ``size`` (colour, ids, geometry, walk state): sized
@@ -154,6 +169,8 @@ class Renderer:
                 self._targets[key].depth_mask = False     # the resolve reads the mask, never writes it
             elif kind == "walk":
                 self._targets[key] = self.ctx.framebuffer([], depth)
+            elif kind == "proxy cost":
+                self._targets[key] = self.ctx.framebuffer([tex(size, 4, dtype="f4")])
             else:
                 images = [tex(size, 4, dtype="u4"), tex(size, 4, dtype="u4"), tex(size, 4, dtype="f4"),
                           tex(size, 4, dtype="f4"), tex(size, 4, dtype="f4")]
@@ -188,8 +205,18 @@ class Renderer:
         release_framebuffers(self._parking, self._targets)
 
     # --- drawing -----------------------------------------------------------------------------------
+    def proxy_program(self, p: Params, mode: str, cost: bool, supersample: int = 1,
+                      msaa: int = 0) -> moderngl.Program:
+        """The proxies strategy's program: one traversal per proxy fragment (stages/container.frag)."""
+        defines = {"TRAVERSAL": MODES[mode], "MAX_RINGS": MAX_RINGS, "MAX_SUB": MAX_SUB,
+                   "HASH_THESIS": int(p["fibers.hash"] == "thesis"), "COST_PASS": int(cost),
+                   "SHAPED": int(is_shaped(p)), "SHADING_MODEL": SHADING_MODELS[p["look.model"]],
+                   "SHADOW_MODE": SHADOW_MODES[p["look.self_shadow"]], "SUPERSAMPLE": supersample,
+                   "MSAA_SAMPLES": msaa}
+        return self.programs.get(self.ctx, "stages/container.vert", "stages/container.frag", defines)
+
     def program(self, p: Params, mode: str, cost: bool, stage: str = "walk") -> moderngl.Program:
-        """The walk pass (``stage`` "walk") or the shading of its winners ("resolve") for ``p``."""
+        """The walk strategy's pass (``stage`` "walk") or the shading of its winners ("resolve")."""
         defines = {"TRAVERSAL": MODES[mode], "MAX_RINGS": MAX_RINGS, "MAX_SUB": MAX_SUB, "WALK_CAP": WALK_CAP,
                    "HASH_THESIS": int(p["fibers.hash"] == "thesis"), "COST_PASS": int(cost),
                    "SHAPED": int(is_shaped(p)), "SHADING_MODEL": SHADING_MODELS[p["look.model"]],
@@ -221,9 +248,15 @@ class Renderer:
         for name, value in values.items():
             if name in prog:
                 prog[name].value = value
-        for name, arr in ring_uniforms(lay).items():
+        samples = np.zeros((16, 2), np.float32)
+        pattern = MSAA_PATTERNS.get(p["quality.msaa"])
+        if pattern:
+            samples[:len(pattern)] = np.array(pattern) / 16.0
+        for name, arr in (*ring_uniforms(lay).items(), ("uSampleOffsets", samples)):
             if name in prog:
                 prog[name].write(arr.tobytes())
+        if "uClipFromCamera" in prog:
+            prog["uClipFromCamera"].write(cam.clip_from_camera(w / h).T.astype(np.float32).copy().tobytes())
         bvh = self.bvh
         for name, value in (("uBvhLeaves", bvh.leaves), ("uBvhDepth", bvh.depth),
                             ("uSegmentCount", self.scene.n_segments)):
@@ -232,9 +265,30 @@ class Renderer:
 
     def _vao(self, prog: moderngl.Program) -> moderngl.VertexArray:
         """The fullscreen triangle (no vertex buffer: fullscreen.vert places it from gl_VertexID)."""
-        if id(prog) not in self._vaos:
-            self._vaos[id(prog)] = self.ctx.vertex_array(prog, [])
-        return self._vaos[id(prog)]
+        if (id(prog), "fullscreen") not in self._vaos:
+            self._vaos[(id(prog), "fullscreen")] = self.ctx.vertex_array(prog, [])
+        return self._vaos[(id(prog), "fullscreen")]
+
+    def _proxy_vao(self, prog: moderngl.Program) -> moderngl.VertexArray:
+        """Every container segment as an instance of the proxy rectangle (container.vert)."""
+        key = (id(prog), "proxies")
+        if key not in self._vaos:
+            self._vaos[key] = self.ctx.vertex_array(prog, [
+                (self._quad, "2f", "in_quad"),
+                (self._buffers["segments"], "4f 4f 4f 4f 4f/i", "in_a", "in_b", "in_c", "in_d", "in_e"),
+            ])
+        return self._vaos[key]
+
+    def visibility(self, p: Params, cam: Camera, size: tuple[int, int]) -> str:
+        """Which way this frame finds each pixel's containers: quality.visibility, or for "auto" the walk
+        once the proxies would stack WALK_LAYERS deep (proxy_layers, cached per camera and size)."""
+        choice = p["quality.visibility"]
+        if choice != "auto":
+            return choice
+        key = (tuple(cam.position), tuple(cam.target), cam.fov, cam.near, tuple(size))
+        if self._layers is None or self._layers[0] != key:
+            self._layers = (key, proxy_layers(self.scene, cam, size))
+        return "walk" if self._layers[1] > WALK_LAYERS else "proxies"
 
     def _use(self, fbo: moderngl.Framebuffer, region: tuple[int, int, int, int]) -> None:
         """Bind ``fbo`` with the pass's viewport and scissor. moderngl keeps both per framebuffer and sets
@@ -347,25 +401,123 @@ class Renderer:
             fbo.scissor = None
         return draws, left
 
+    # --- the proxies strategy ------------------------------------------------------------------------
+    def _proxy_draws(self, prog: moderngl.Program, p: Params, mode: str, rays: int) -> int:
+        """Draw every container's proxy once per range of ``draw_ranges``; the depth test keeps the
+        nearest hit across containers and ranges. Returns the draw count."""
+        vao = self._proxy_vao(prog)
+        ranges = draw_ranges(p, self.scene, mode, rays)
+        if "uRingOrder" in prog:
+            prog["uRingOrder"].value = int(len(ranges) > 1 or needs_ring_order(p, self.scene, mode, rays))
+        for start, end in ranges:
+            for name in ("uBruteRange", "uFiberRange"):
+                if name in prog:
+                    prog[name].value = (start, end)
+            vao.render(moderngl.TRIANGLES, instances=self.scene.n_segments)
+        return len(ranges)
+
+    def _render_proxies(self, p: Params, cam: Camera, size, outputs, offset, mode: str, antialias: bool,
+                        region) -> Frame:
+        """The proxies strategy: every container segment drawn as its screen rectangle, one traversal
+        per fragment, the depth test keeping the nearest (stages/container.vert, container.frag)."""
+        ctx = self.ctx
+        frame = Frame()
+        supersample = p["quality.supersample"] if antialias and mode != "brute" else 1
+        msaa = self._msaa_samples(p) if antialias and mode != "brute" else 0
+        rays = 1 if mode == "brute" else max(supersample ** 2, msaa, 1)
+        rays *= traversals_per_fragment(p, mode)
+        used = []
+        wants_pass = {"ids", "geom", "draw"} & set(outputs) or ("color" in outputs and not msaa)
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.depth_func = "<"
+        if wants_pass:
+            fbo = self._target(size, "image")
+            fbo.depth_mask = True
+            used.append(fbo)
+            self._use(fbo, region)
+            clear_targets(fbo)
+            prog = self.proxy_program(p, mode, cost=False, supersample=supersample)
+            self._set_uniforms(prog, p, cam, size, offset)
+            frame.draws += self._proxy_draws(prog, p, mode, rays)
+            fbo.depth_mask = False
+            if "color" in outputs and not msaa:
+                frame.color, frame.coverage = _composite(_read(fbo, 0, 4, "f1", size), p)
+            if "ids" in outputs:
+                frame.ids = _read(fbo, 1, 4, "u4", size)
+            if "geom" in outputs:
+                frame.geom = _read(fbo, 2, 4, "f4", size)
+        if "color" in outputs and msaa:
+            ms, resolved = self._msaa_targets(size, msaa)
+            used += [ms, resolved]
+            self._use(ms, region)
+            ms.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+            prog = self.proxy_program(p, mode, cost=False, msaa=msaa)
+            self._set_uniforms(prog, p, cam, size, offset)
+            frame.draws += self._proxy_draws(prog, p, mode, rays)
+            ms.scissor = None               # the resolve copies the whole target
+            ctx.copy_framebuffer(resolved, ms)
+            frame.color, frame.coverage = _composite(_read(resolved, 0, 4, "f1", size), p)
+        ctx.disable(moderngl.DEPTH_TEST)
+        for kind in ("cost", "iters"):
+            if kind not in outputs:
+                continue
+            fbo = self._target(size, "proxy cost")
+            used.append(fbo)
+            self._use(fbo, region)
+            fbo.clear(0.0, 0.0, 0.0, 0.0)
+            ctx.enable(moderngl.BLEND)
+            ctx.blend_func = moderngl.ONE, moderngl.ONE
+            ctx.blend_equation = moderngl.FUNC_ADD if kind == "cost" else moderngl.MAX
+            prog = self.proxy_program(p, mode, cost=True)
+            self._set_uniforms(prog, p, cam, size, offset)
+            frame.draws += self._proxy_draws(prog, p, mode, rays)
+            data = _read(fbo, 0, 4, "f4", size)
+            if kind == "cost":
+                # every proxy fragment the ray entered traversed its container; no hierarchy was walked
+                frame.cost = data
+                frame.walk = np.zeros_like(data)
+                frame.walk[..., 0] = data[..., 2]
+            else:
+                frame.iters = data[..., 3]
+            ctx.blend_equation = moderngl.FUNC_ADD
+            ctx.disable(moderngl.BLEND)
+        for fbo in used:
+            fbo.scissor = None
+        return frame
+
+    def _msaa_targets(self, size: tuple[int, int], samples: int):
+        key = (size, "msaa", samples)
+        if key not in self._targets:
+            ms = self.ctx.framebuffer([self.ctx.renderbuffer(size, 4, samples=samples)],
+                                      self.ctx.depth_renderbuffer(size, samples=samples))
+            resolved = self.ctx.framebuffer([self.ctx.texture(size, 4, dtype="f1")])
+            self._targets[key] = ms
+            self._targets[key + ("resolved",)] = resolved
+        return self._targets[key], self._targets[key + ("resolved",)]
+
+    # --- the walk strategy ---------------------------------------------------------------------------
     def render(self, p: Params, cam: Camera, size: tuple[int, int], *, outputs=("color",),
                offset=(0.0, 0.0), mode: str | None = None, antialias: bool = True,
                region: tuple[int, int, int, int] | None = None) -> Frame:
         """Render the scene. ``outputs`` is any of color, ids, geom, cost, iters, draw (no read-back).
 
+        Both ways of finding a pixel's containers (``visibility``) give every output and the same fibers.
         With ``antialias``, colour honours quality.supersample (n x n stratified rays per pixel) or
-        quality.msaa (a ray through each of the standard MSAA sample positions); each ray finds its own
-        nearest fiber over all containers, the colour is their coverage-weighted mean and ids, normal and
-        depth come from the nearest of them. Brute force always casts one ray per pixel: it is the
-        reference for ids. ``region`` (x, y, w, h in pixels, GL's bottom-left origin) renders only that
-        rectangle: the rest of the targets keeps what earlier calls drew (tiled refinement).
+        quality.msaa; brute force always casts one ray per pixel: it is the reference for ids. The walk
+        casts a whole frame per sample and takes the nearest sample's ids, normal and depth; the proxies
+        trace the rays in the shader (msaa: one ray per sample, shaded once). ``region`` (x, y, w, h in
+        pixels, GL's bottom-left origin) renders only that rectangle: the rest of the targets keeps what
+        earlier calls drew (tiled refinement).
         """
         if self.scene is None:
             raise RuntimeError("Renderer.render: call set_scene first")
         mode = mode or p["quality.mode"]
-        frame = Frame()
         size = (int(size[0]), int(size[1]))
         region = (0, 0) + size if region is None else tuple(int(v) for v in region)
         self.prepare_state()
+        if self.visibility(p, cam, size) == "proxies":
+            return self._render_proxies(p, cam, size, outputs, offset, mode, antialias, region)
+        frame = Frame()
         offsets = [tuple(offset)]
         if antialias and mode != "brute":
             n, msaa = p["quality.supersample"], self._msaa_samples(p)
@@ -593,6 +745,50 @@ def release_framebuffers(parking: moderngl.Framebuffer, targets: dict) -> None:
 def scene_gpu_bytes(scene: Scene) -> int:
     """What ``Renderer.set_scene`` allocates for ``scene``: the segments, the hierarchy's boxes and order."""
     return scene.nbytes + build_bvh(scene).nbytes if scene.n_segments else 80 + 32 + 4
+
+
+def proxy_layers(scene: Scene, cam: Camera, size: tuple[int, int], grid: int = 64) -> float:
+    """How many container proxies stack over a covered pixel, on average: each segment's screen
+    rectangle (its end points widened by its radius) counted on a coarse grid, a rectangle smaller than
+    its cells counted by its share of them. The proxies strategy costs a traversal per layer; the walk
+    a walk plus the containers in front of each pixel's fiber. A segment reaching behind the camera
+    makes it infinite (its proxy covers the whole viewport). ~50 ms for harolongo's 158,100 segments."""
+    if scene.n_segments == 0:
+        return 0.0
+    seg = scene.segments.astype(np.float64)
+    right, up, forward = (np.asarray(v, np.float64) for v in cam.basis())
+    rel = scene.origin - cam.position
+    w, h = size
+    th = math.tan(math.radians(cam.fov) / 2)
+    aspect = w / h
+
+    def project(q: np.ndarray):
+        z = q @ forward
+        return (q @ right) / (z * th * aspect), (q @ up) / (z * th), z
+
+    x0, y0, z0 = project(seg[:, 0:3] + rel)
+    x1, y1, z1 = project(seg[:, 4:7] + rel)
+    z = np.minimum(z0, z1)
+    if (z <= cam.near).any():
+        return math.inf
+    rad = np.maximum(seg[:, 3], seg[:, 7]) / z / th            # in y ndc units
+    xa, xb = np.minimum(x0, x1) - rad / aspect, np.maximum(x0, x1) + rad / aspect
+    ya, yb = np.minimum(y0, y1) - rad, np.maximum(y0, y1) + rad
+    seen = (xb > -1) & (xa < 1) & (yb > -1) & (ya < 1)
+    xa, xb, ya, yb = xa[seen], xb[seen], ya[seen], yb[seen]
+    gx, gy = grid, max(1, round(grid / aspect))
+
+    def cell(v, n):
+        return np.clip(((v + 1) / 2 * n).astype(np.int64), 0, n - 1)
+
+    cx0, cx1, cy0, cy1 = cell(xa, gx), cell(xb, gx) + 1, cell(ya, gy), cell(yb, gy) + 1
+    share = np.minimum(1.0, (xb - xa) * (yb - ya) / 4 * gx * gy / ((cx1 - cx0) * (cy1 - cy0)))
+    diff = np.zeros((gy + 1, gx + 1))                           # a 2D difference array of the rectangles
+    for yy, xx, sign in ((cy0, cx0, 1), (cy0, cx1, -1), (cy1, cx0, -1), (cy1, cx1, 1)):
+        np.add.at(diff, (yy, xx), sign * share)
+    counts = diff.cumsum(0).cumsum(1)[:gy, :gx]
+    covered = counts > 0.05
+    return float(counts[covered].mean()) if covered.any() else 0.0
 
 
 def frame_gpu_bytes(size: tuple[int, int]) -> int:
