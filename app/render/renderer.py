@@ -232,12 +232,18 @@ class Renderer:
         return len(ranges)
 
     def render(self, p: Params, cam: Camera, size: tuple[int, int], *, outputs=("color",),
-               offset=(0.0, 0.0), mode: str | None = None, antialias: bool = True) -> Frame:
+               offset=(0.0, 0.0), mode: str | None = None, antialias: bool = True,
+               region: tuple[int, int, int, int] | None = None) -> Frame:
         """Render the scene. ``outputs`` is any of color, ids, geom, cost, iters, draw (no read-back).
 
         With ``antialias``, colour honours quality.supersample (n x n rays per pixel in the shader) or
         quality.msaa (one ray per MSAA sample, shaded once). Brute force always casts one ray per pixel:
         it is the reference for ids, and n^2 rays would cost n^2 times its loop budget.
+
+        ``region`` = (x, y, w, h) in pixels of ``size``, origin bottom-left as GL: only that rectangle is
+        cleared and drawn (the scissor test, in every pass), so a frame can be built in tiles across calls,
+        the viewer's way of keeping its UI live while a slow frame refines; pixels outside keep what earlier
+        calls drew, and read-backs return the whole target, those pixels included.
         """
         if self.scene is None:
             raise RuntimeError("Renderer.render: call set_scene first")
@@ -245,6 +251,23 @@ class Renderer:
         ctx = self.ctx
         frame = Frame()
         size = (int(size[0]), int(size[1]))
+        region = _clip_region(region, size)
+        try:
+            self._render(frame, p, cam, size, outputs, offset, mode, antialias, region)
+        finally:
+            if region is not None:        # the scissor belongs to the target: leave none behind
+                for fbo in self._targets.values():
+                    fbo.scissor = None
+        return frame
+
+    def _render(self, frame: Frame, p: Params, cam: Camera, size: tuple[int, int], outputs, offset, mode: str,
+                antialias: bool, region: tuple[int, int, int, int] | None) -> None:
+        ctx = self.ctx
+
+        def bind(fbo: moderngl.Framebuffer) -> None:
+            fbo.use()
+            ctx.viewport = (0, 0) + size
+            ctx.scissor = region
         self.prepare_state()
         supersample = p["quality.supersample"] if antialias and mode != "brute" else 1
         msaa = self._msaa_samples(p) if antialias and mode != "brute" else 0
@@ -252,9 +275,8 @@ class Renderer:
         wants_pass = {"ids", "geom", "draw"} & set(outputs) or ("color" in outputs and not msaa)
         if wants_pass:
             fbo = self._target(size, cost=False)
-            fbo.use()
-            ctx.viewport = (0, 0) + size
-            clear_targets(fbo)
+            bind(fbo)
+            clear_targets(fbo, region)
             ctx.enable(moderngl.DEPTH_TEST)
             ctx.depth_func = "<"
             prog = self.program(p, mode, cost=False, supersample=supersample)
@@ -268,23 +290,22 @@ class Renderer:
                 frame.geom = _read(fbo, 2, 4, "f4", size)
         if "color" in outputs and msaa:
             ms, resolved = self._msaa_targets(size, msaa)
-            ms.use()
-            ctx.viewport = (0, 0) + size
-            ms.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+            bind(ms)
+            ms.clear(0.0, 0.0, 0.0, 0.0, depth=1.0, viewport=region)
             ctx.enable(moderngl.DEPTH_TEST)
             ctx.depth_func = "<"
             prog = self.program(p, mode, cost=False, msaa=msaa)
             self._set_uniforms(prog, p, cam, size, offset)
             frame.draws += self._draw(prog, p, mode)
+            ms.scissor = None             # the resolve copies the whole target (earlier tiles too)
             ctx.copy_framebuffer(resolved, ms)
             frame.color, frame.coverage = _composite(_read(resolved, 0, 4, "f1", size), p)
         for kind in ("cost", "iters"):
             if kind not in outputs:
                 continue
             fbo = self._target(size, cost=True)
-            fbo.use()
-            ctx.viewport = (0, 0) + size
-            fbo.clear(0.0, 0.0, 0.0, 0.0)
+            bind(fbo)
+            fbo.clear(0.0, 0.0, 0.0, 0.0, viewport=region)
             ctx.disable(moderngl.DEPTH_TEST)
             ctx.enable(moderngl.BLEND)
             ctx.blend_func = moderngl.ONE, moderngl.ONE
@@ -299,7 +320,6 @@ class Renderer:
                 frame.iters = data[..., 3]
             ctx.blend_equation = moderngl.FUNC_ADD
             ctx.disable(moderngl.BLEND)
-        return frame
 
 
 EPS_ANGLE = 2e-5                        # glsl/common/epsilon.glsl
@@ -449,11 +469,24 @@ def is_shaped(p: Params) -> bool:
     return p["shape.ellipsoid"] > 0 or p["shape.curl_amplitude"] > 0 or p["shape.twist"] != 0
 
 
-def clear_targets(fbo: moderngl.Framebuffer) -> None:
-    """Zero every colour attachment and set depth to 1. moderngl clears each attachment with the
-    glClearBuffer call of its type (uiv for the integer ids, fv for the others: tests/test_gl_infra.py), so
-    the integer target is cleared as GL defines, where glClear would leave it undefined."""
-    fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+def clear_targets(fbo: moderngl.Framebuffer, region: tuple[int, int, int, int] | None = None) -> None:
+    """Zero every colour attachment and set depth to 1 (inside ``region`` only, when given). moderngl clears
+    each attachment with the glClearBuffer call of its type (uiv for the integer ids, fv for the others:
+    tests/test_gl_infra.py), so the integer target is cleared as GL defines, where glClear would leave it
+    undefined."""
+    fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0, viewport=region)
+
+
+def _clip_region(region, size: tuple[int, int]) -> tuple[int, int, int, int] | None:
+    """``region`` as whole pixels inside the frame; None (no scissor) when it is absent or the whole frame."""
+    if region is None:
+        return None
+    x, y, w, h = (int(v) for v in region)
+    x0, y0 = min(max(x, 0), size[0]), min(max(y, 0), size[1])
+    x1, y1 = min(max(x + w, x0), size[0]), min(max(y + h, y0), size[1])
+    if (x0, y0, x1, y1) == (0, 0) + tuple(size):
+        return None
+    return (x0, y0, x1 - x0, y1 - y0)
 
 
 def release_framebuffers(parking: moderngl.Framebuffer, targets: dict) -> None:
