@@ -52,7 +52,8 @@ from ..render.camera import Camera
 from ..render.renderer import Renderer
 from ..scene.containers import Scene
 from ..scene.generators import build_scene
-from .display import CostModel, StripJob, ViewportRenderer, auto_scale, cost_stats, render_still, supersample_offsets
+from .display import (CostModel, StripJob, ViewportRenderer, auto_scale, cost_stats, render_still, row_weights,
+                      supersample_offsets)
 from .gui import Layout, gui, refine_overlay
 from .navigate import CameraController, Input, make_camera
 from .script import Script, ScriptError, ScriptRunner, emit, load_script
@@ -111,6 +112,7 @@ class Viewer:
         self._job: dict[str, Any] | None = None     # the sample being refined: key, quality, scale, mode
         self._cost_job: tuple[tuple, StripJob] | None = None    # the overlay's cost render, in strips
         self._loading: dict[str, Any] | None = None # a scene being built in a worker thread
+        self._weights = None                        # display.row_weights of the frame being drawn
         self._first_picture = False
         self._first_full = False
         self.gl_errors: list[str] = []
@@ -563,8 +565,9 @@ class Viewer:
         if what == "new":
             self._update_counts()
             self._cost_job = None
+            weights = self._weights = row_weights(self.scene, cam, size)
             model = self.vp.models.get(("draw", mode, one_pass_aa))
-            predicted = model.predict(size[0] * size[1]) if model else None
+            predicted = model.predict(weights.sum()) if model else None
             if predicted is None or predicted > REFINE_BUDGET_S:   # it will refine: keep the old picture
                 if self.vp.samples == 0 and self.vp.job is None:   # none of this scene yet: a sketch
                     self.vp.sketch(self._viewport_rect()[2:], s.params, cam, self.scene)
@@ -588,7 +591,7 @@ class Viewer:
                 self._final_wanted = 1
                 self._sample_done(time.perf_counter() - t0, "wall")
             elif s.view.frame_path == "direct" and not one_pass_aa:
-                self.vp.begin_sample(s.params, cam, mode, offset)
+                self.vp.begin_sample(s.params, cam, mode, offset, weights=self._weights)
                 return self._refine()
             else:
                 timing = self.vp.render_sample(s.params, cam, mode, offset, s.view.frame_path,
@@ -688,7 +691,8 @@ class Viewer:
             def draw(region):
                 return self.renderer.render(p, cam, size, outputs=("cost",), mode=mode, region=region)
             model = self.vp.models.setdefault(("cost", mode), CostModel())
-            self._cost_job = (self._shown_key, StripJob(size, draw, model, self.ctx.finish))
+            job = StripJob(size, draw, model, self.ctx.finish, row_weights(self.scene, cam, size))
+            self._cost_job = (self._shown_key, job)
         job = self._cost_job[1]
         try:
             done = job.step(REFINE_BUDGET_S)

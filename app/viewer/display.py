@@ -14,10 +14,12 @@ Either way the display shader sees the same four textures (accumulated colour, i
 Slow frames refine across UI frames. A direct sample is a :class:`StripJob`: horizontal strips, top row
 first, each drawn with ``Renderer.render(region=...)`` and sized from a :class:`CostModel` so that one UI
 frame spends about ``budget_s`` on fibers. Until the sample is complete the display shows the picture
-that was on screen before (the *base*, a snapshot) with the finished strips over it, so input, menus and
-the panel keep running whatever one frame costs. A draw has a fixed cost whatever its rectangle (every
-container's vertices), so no strip is made cheaper than twice that: past that point smaller strips only
-add overhead.
+that was on screen before (the *base*, a snapshot; for a new scene a sketch of one line per container)
+with the finished strips over it, so input, menus and the panel keep running whatever one frame costs.
+A draw has a fixed cost whatever its rectangle (every container's vertices), so no strip is made so
+small that the fixed cost is more than MAX_FIXED_SHARE of it: past that, smaller strips mostly add time.
+Strips are sized by :func:`row_weights`, the container area per row, because the hair rows of a groom
+cost 40x its background rows.
 """
 
 from __future__ import annotations
@@ -42,6 +44,10 @@ PROXY_SIDES = 16                                   # must match N_SIDES in glsl/
 PROXY_VERTICES = 4 * PROXY_SIDES + 8
 TIMER_WRAP_S = 4.0                                 # a 32-bit nanosecond timer query wraps at 4.29 s
 FIRST_STRIP_ROWS = 8                               # a strip whose cost nothing predicts yet
+# The most of a strip's time its draw's fixed cost (every container's vertices, whatever the rectangle)
+# may take: smaller strips would keep UI frames shorter but make the whole frame take longer, 1 / share
+# times its fragment work at worst.
+MAX_FIXED_SHARE = 1 / 3
 
 # The heat ramp of app/render/debug_views.py (the CLI's pictures); glsl/viewer/palette.glsl holds the
 # same six stops and a test holds the viewer's debug views against debug_views pixel by pixel.
@@ -80,36 +86,74 @@ class CostStats:
 
 @dataclass
 class CostModel:
-    """What one draw of a scene costs: a fixed part whatever its rectangle, plus a part per pixel."""
+    """What one draw of a scene costs: a fixed part whatever its rectangle, plus a part per unit of
+    :func:`row_weights` (container fragments, roughly) inside it."""
 
     fixed_s: float | None = None
-    per_pixel_s: float | None = None
+    per_unit_s: float | None = None
 
-    def predict(self, pixels: int) -> float | None:
-        if self.fixed_s is None or self.per_pixel_s is None:
+    def predict(self, units: float) -> float | None:
+        if self.fixed_s is None or self.per_unit_s is None:
             return None
-        return self.fixed_s + self.per_pixel_s * pixels
+        return self.fixed_s + self.per_unit_s * units
+
+
+def row_weights(scene: Scene, cam: Camera, size: tuple[int, int]) -> np.ndarray:
+    """The expected cost of each image row (GL order, bottom row first): the area of the container proxies
+    that cross it, spread evenly over the rows each one spans, plus a little per pixel. Fibers cost where
+    containers overlap, and harolongo's hair rows cost 40x its background rows, so strips sized by pixels
+    alone overshoot their budget as they reach the hair."""
+    w, h = int(size[0]), int(size[1])
+    seg = scene.segments
+    rel = np.asarray(scene.origin, np.float64) - cam.position
+    m = cam.clip_from_camera(w / max(h, 1))
+    ends = []
+    for cols in (slice(0, 3), slice(4, 7)):
+        p = seg[:, cols] + rel.astype(np.float32)       # float32 is plenty to size strips
+        clip = p @ m[:, :3].T + m[:, 3]
+        ends.append((clip, clip[:, 3]))
+    (ca, wa), (cb, wb) = ends
+    front = (wa > 1e-6) & (wb > 1e-6)
+    safe_a, safe_b = np.where(front, wa, 1.0), np.where(front, wb, 1.0)
+    xa, ya = (ca[:, 0] / safe_a * 0.5 + 0.5) * w, (ca[:, 1] / safe_a * 0.5 + 0.5) * h
+    xb, yb = (cb[:, 0] / safe_b * 0.5 + 0.5) * w, (cb[:, 1] / safe_b * 0.5 + 0.5) * h
+    focal = 0.5 * h / math.tan(math.radians(cam.fov) / 2)
+    r_px = np.maximum(seg[:, 3], seg[:, 7]) * focal / np.minimum(safe_a, safe_b) + 1.0
+    y0 = np.clip(np.minimum(ya, yb) - r_px, 0, h)
+    y1 = np.clip(np.maximum(ya, yb) + r_px, 0, h)
+    area = (np.hypot(xa - xb, ya - yb) + 2 * r_px) * 2 * r_px
+    on = front & (y1 > y0)
+    lo, hi = np.floor(y0[on]).astype(np.int64), np.ceil(y1[on]).astype(np.int64)
+    per_row = area[on] / np.maximum(hi - lo, 1)
+    diff = np.bincount(lo, per_row, h + 1) - np.bincount(hi, per_row, h + 1)
+    weights = np.cumsum(diff[:h])
+    weights += w * 2.0 * (~front).sum()          # a container at the camera covers the whole viewport
+    return np.maximum(weights, 0.0) + 0.05 * w   # and a pixel with no container still costs a little
 
 
 class StripJob:
     """One frame drawn in horizontal strips across calls to :meth:`step`, top row first.
 
     ``draw(region)`` draws one strip, (x, y, w, h) in GL pixels, and returns its Frame (or None); the job
-    finishes the GPU after each strip to time it and learns ``model`` from the times. A frame that fits the
-    budget is drawn in one call with ``region=None`` (the whole frame), as without strips.
+    finishes the GPU after each strip to time it and learns ``model`` from the times. ``weights``: the
+    expected cost per row (:func:`row_weights`; None: every pixel alike). A frame that fits the budget is
+    drawn in one call with ``region=None`` (the whole frame), as without strips.
     """
 
     def __init__(self, size: tuple[int, int], draw: Callable[[tuple[int, int, int, int] | None], Frame | None],
-                 model: CostModel, finish: Callable[[], None]):
+                 model: CostModel, finish: Callable[[], None], weights: np.ndarray | None = None):
         self.size = (int(size[0]), int(size[1]))
         self.draw = draw
         self.model = model
         self.finish = finish
-        self.top = self.size[1]          # rows [top, height) are drawn (GL rows, bottom first)
+        w, h = self.size
+        weights = np.full(h, float(w)) if weights is None else np.asarray(weights, np.float64)
+        self._cum = np.concatenate([[0.0], np.cumsum(weights)])   # rows [a, b) weigh cum[b] - cum[a]
+        self.top = h                     # rows [top, height) are drawn (GL rows, bottom first)
         self.spent_s = 0.0               # fiber time over all strips so far
         self.strips = 0
         self.last: Frame | None = None   # what the last strip's draw returned
-        self._rows = 0                   # the last strip's height
+        self._last_units = 0.0           # the last strip's weight
 
     @property
     def done(self) -> bool:
@@ -123,18 +167,21 @@ class StripJob:
         """The finished part, (x, y, w, h) in the frame's GL pixels."""
         return (0, self.top, self.size[0], self.size[1] - self.top)
 
+    def _units(self, rows: int) -> float:
+        return float(self._cum[self.top] - self._cum[self.top - rows])
+
     def _next_rows(self, budget_s: float) -> int:
-        w = self.size[0]
-        m = self.model
         if math.isinf(budget_s):
             return self.top
-        if m.fixed_s is None or m.per_pixel_s is None:
+        m = self.model
+        if m.fixed_s is None or m.per_unit_s is None:
             return min(FIRST_STRIP_ROWS, self.top)
-        target = max(budget_s, 2.0 * m.fixed_s)   # below 2x the fixed cost, strips are mostly overhead
-        rows = int(min((target - m.fixed_s) / max(m.per_pixel_s * w, 1e-12), self.top))
-        if self._rows:
-            rows = min(rows, 2 * self._rows)      # density changes down the frame: grow step by step
-        return max(1, min(rows, self.top))
+        target = max(budget_s, m.fixed_s / MAX_FIXED_SHARE)
+        units = (target - m.fixed_s) / max(m.per_unit_s, 1e-15)
+        if self._last_units > 0:
+            units = min(units, 4.0 * self._last_units)   # the estimate may be off: grow step by step
+        lo = int(np.searchsorted(self._cum, self._cum[self.top] - units, side="left"))
+        return max(1, min(self.top - lo, self.top))
 
     def step(self, budget_s: float) -> bool:
         """Draw strips for about ``budget_s`` seconds (at least one). True when the frame is complete."""
@@ -152,7 +199,8 @@ class StripJob:
         drawn = 0
         while not self.done:
             rows = self._next_rows(budget_s)
-            predicted = m.predict(rows * w)
+            units = self._units(rows)
+            predicted = m.predict(units)
             elapsed = time.perf_counter() - t_step
             if drawn and predicted is not None and elapsed + predicted > budget_s:
                 break
@@ -164,10 +212,9 @@ class StripJob:
             self.spent_s += t
             self.strips += 1
             drawn += 1
-            self._rows = rows
+            self._last_units = units
             self.top -= rows
-            fixed = m.fixed_s or 0.0
-            m.per_pixel_s = max(t - fixed, 0.1 * t) / (rows * w)
+            m.per_unit_s = max(t - (m.fixed_s or 0.0), 0.1 * t) / max(units, 1e-9)
             if time.perf_counter() - t_step >= budget_s or m.fixed_s is None:
                 break
         return self.done
@@ -270,8 +317,8 @@ class ViewportRenderer:
         self.invalidate()
 
     # --- one fiber sample ---------------------------------------------------------------------------
-    def begin_sample(self, p: Params, cam: Camera, mode: str, offset: tuple[float, float], antialias: bool = False
-                     ) -> StripJob:
+    def begin_sample(self, p: Params, cam: Camera, mode: str, offset: tuple[float, float], antialias: bool = False,
+                     weights: np.ndarray | None = None) -> StripJob:
         """Start the next sample (one ray per pixel through ``offset``, or the renderer's own antialiasing
         with ``antialias``) at ``self.size`` as strips on the direct path; :meth:`refine` draws them."""
         size = self.size
@@ -283,7 +330,9 @@ class ViewportRenderer:
             return self.renderer.render(p, cam, size, outputs=("draw",), offset=offset, mode=mode,
                                         antialias=antialias, region=region)
         model = self.models.setdefault(("draw", mode, antialias), CostModel())
-        self.job = StripJob(size, draw, model, self.ctx.finish)
+        if weights is None:
+            weights = row_weights(self.renderer.scene, cam, size)
+        self.job = StripJob(size, draw, model, self.ctx.finish, weights)
         return self.job
 
     def refine(self, budget_s: float) -> bool:

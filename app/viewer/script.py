@@ -13,7 +13,7 @@ A script is a TOML or JSON file (by extension; JSON may also be a bare list of s
       { wait = 3 },                          # frames shown on screen
       { wait_seconds = 0.5 },
       { wait_final = true },                 # until the full-quality frame (all samples) is shown
-      { wait_for = "shader_error", timeout = 30 },    # until a report field is set ("not:x": cleared)
+      { wait_for = "shader_error", timeout = 30 },    # until a report or stats field is set ("not:x": cleared)
       { screenshot = "out.png", size = [640, 360], view = "shaded" },      # offscreen, no UI
       { grab = "window.png" },               # the window's render area as displayed (no UI)
       { grab = "ui.png", ui = true, final = true },   # the whole window, once the final frame is in
@@ -185,7 +185,9 @@ class ScriptRunner:
         if self._wait_for is not None:
             name, deadline = self._wait_for
             negate = name.startswith("not:")
-            value = bool(viewer.state.report().get(name.removeprefix("not:")))
+            report = viewer.state.report()
+            field_name = name.removeprefix("not:")
+            value = bool(report[field_name] if field_name in report else report["stats"].get(field_name))
             if value != negate:
                 self._wait_for = None
             elif time.perf_counter() > deadline:
@@ -255,8 +257,10 @@ class ScriptRunner:
             return True
         elif action == "wait_for":
             field_name = str(arg).removeprefix("not:")
-            if field_name not in viewer.state.report():
-                raise ScriptError(f"wait_for = {arg!r}: a report field ({', '.join(viewer.state.report())})")
+            report = viewer.state.report()
+            if field_name not in report and field_name not in report["stats"]:
+                raise ScriptError(f"wait_for = {arg!r}: a report or stats field ({', '.join(report)}, "
+                                  f"{', '.join(report['stats'])})")
             self._wait_for = (str(arg), time.perf_counter() + float(step.get("timeout", 60)))
             return True
         elif action == "screenshot":
