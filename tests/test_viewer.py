@@ -322,6 +322,7 @@ def test_scripted_session_renders_reacts_saves_and_survives_a_bad_preset(tmp_pat
         {"print": "params"},
         {"print": "dirty"},
         {"print": "gl_error"},
+        {"wait_for": "tests_per_pixel", "timeout": 60},   # the overlay's cost render refines in strips
         {"print": "stats"},
         {"quit": 0},
     ]}
