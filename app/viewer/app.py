@@ -584,12 +584,9 @@ class Viewer:
         self._job = {"key": key, "quality": quality, "scale": scale, "mode": mode, "cam": cam}
         try:
             if s.view.view == "heat map":
-                t0 = time.perf_counter()
-                stats = self.vp.render_cost(s.params, cam, mode, size, upload=True)
-                self._publish_cost(stats)
-                self.vp.samples = 1
                 self._final_wanted = 1
-                self._sample_done(time.perf_counter() - t0, "wall")
+                self.vp.begin_cost(s.params, cam, mode, weights=self._weights)
+                return self._refine()
             elif s.view.frame_path == "direct" and not one_pass_aa:
                 self.vp.begin_sample(s.params, cam, mode, offset, weights=self._weights)
                 return self._refine()
@@ -615,6 +612,8 @@ class Viewer:
         if job is None or not self.vp.refine(math.inf if forced else REFINE_BUDGET_S):
             self._show_progress()
             return True
+        if self.state.view.view == "heat map" and self.vp.cost_stats is not None:
+            self._publish_cost(self.vp.cost_stats)
         self._sample_done(job.spent_s, "wall")
         return True
 

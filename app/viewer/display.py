@@ -232,7 +232,8 @@ class ViewportRenderer:
         self.has_ids = False                          # ids/geom of the current size are valid
         self.has_cost = False
         self.cost_stats: CostStats | None = None
-        self.job: StripJob | None = None              # the sample being drawn in strips
+        self.job: StripJob | None = None              # the sample (or heat map) being drawn in strips
+        self._job_kind = "sample"                     # "sample": colour, ids, geometry; "cost": the heat map
         self.models: dict[tuple, CostModel] = {}      # per (what, mode): learnt by the strip jobs
         self._bases: list[moderngl.Framebuffer] = []  # two snapshots of the screen, drawn into in turn
         self._base: moderngl.Framebuffer | None = None
@@ -333,6 +334,22 @@ class ViewportRenderer:
         if weights is None:
             weights = row_weights(self.renderer.scene, cam, size)
         self.job = StripJob(size, draw, model, self.ctx.finish, weights)
+        self._job_kind = "sample"
+        return self.job
+
+    def begin_cost(self, p: Params, cam: Camera, mode: str, weights: np.ndarray | None = None) -> StripJob:
+        """Start the heat map's cost render at ``self.size`` as strips; :meth:`refine` draws them and
+        uploads the result once complete."""
+        size = self.size
+        self.renderer.program(p, mode, cost=True)
+
+        def draw(region):
+            return self.renderer.render(p, cam, size, outputs=("cost",), mode=mode, region=region)
+        model = self.models.setdefault(("cost", mode), CostModel())
+        if weights is None:
+            weights = row_weights(self.renderer.scene, cam, size)
+        self.job = StripJob(size, draw, model, self.ctx.finish, weights)
+        self._job_kind = "cost"
         return self.job
 
     def refine(self, budget_s: float) -> bool:
@@ -343,6 +360,10 @@ class ViewportRenderer:
         if not job.step(budget_s):
             return False
         self.job = None
+        if self._job_kind == "cost":
+            self._use_cost(job.last.cost, job.size)
+            self.samples = 1
+            return True
         color_tex = self.renderer.targets(self.size).color_attachments[0]
         self._ids_from = "direct"
         self.has_ids = True
@@ -472,17 +493,21 @@ class ViewportRenderer:
                     upload: bool) -> CostStats:
         """A cost render (fiber tests per pixel) through the public API; ``upload`` for the heat map."""
         frame = self.renderer.render(p, cam, size, outputs=("cost",), mode=mode)
-        cost = frame.cost
-        stats = cost_stats(cost, size)
         if upload:
-            if self._cost_tex is None or self._cost_tex.size != size:
-                if self._cost_tex is not None:
-                    self._cost_tex.release()
-                self._cost_tex = self.ctx.texture(size, 4, dtype="f4")
-            self._cost_tex.write(np.ascontiguousarray(cost[::-1]).tobytes())
-            self.has_cost = True
-        self.cost_stats = stats
-        return stats
+            return self._use_cost(frame.cost, size)
+        self.cost_stats = cost_stats(frame.cost, size)
+        return self.cost_stats
+
+    def _use_cost(self, cost: np.ndarray, size: tuple[int, int]) -> CostStats:
+        """A cost read-back as the heat map's texture and the overlay's figures."""
+        if self._cost_tex is None or self._cost_tex.size != size:
+            if self._cost_tex is not None:
+                self._cost_tex.release()
+            self._cost_tex = self.ctx.texture(size, 4, dtype="f4")
+        self._cost_tex.write(np.ascontiguousarray(cost[::-1]).tobytes())
+        self.has_cost = True
+        self.cost_stats = cost_stats(cost, size)
+        return self.cost_stats
 
     # --- display -----------------------------------------------------------------------------------
     def display(self, target: moderngl.Framebuffer, rect: tuple[int, int, int, int], view: str,
