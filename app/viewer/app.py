@@ -65,6 +65,7 @@ SHADER_POLL_S = 0.5
 SLOW_SCENE_BUILD_S = 0.15               # slower than this: rebuild the scene when the slider is released
 FRAME_HISTORY = 30
 REFINE_BUDGET_S = 0.030                 # fiber time per UI frame while a slow frame refines
+INTERACTIVE_WHOLE = 1.5                 # interactive frames up to this times auto_budget_ms are drawn whole
 
 
 def _scale_fraction(name: str) -> float | None:
@@ -432,7 +433,8 @@ class Viewer:
             self.state.status = f"loading {job['name']}... {time.perf_counter() - job['t0']:.0f} s"
             return False
         self._loading = None
-        self.state.status = ""
+        if self.state.status.startswith("loading "):
+            self.state.status = ""
         wall = time.perf_counter() - job["t0"]
         if job["key"] == key:             # the parameters did not change meanwhile: use it
             self._adopt_scene(key, job["box"], wall, job["name"])
@@ -608,8 +610,14 @@ class Viewer:
     def _refine(self) -> bool:
         """Draw more of the running sample; book it once complete."""
         job = self.vp.job
-        forced = self._bench_forces()     # a bench of final or interactive frames times whole frames
-        if job is None or not self.vp.refine(math.inf if forced else REFINE_BUDGET_S):
+        budget = REFINE_BUDGET_S
+        if self._job is not None and self._job["quality"] == "interactive":
+            # an interactive frame near its aim is drawn whole, as a moving picture must be; only one far
+            # past it (a frame of seconds) is drawn in strips
+            budget = max(budget, INTERACTIVE_WHOLE * self.state.view.auto_budget_ms / 1000)
+        if self._bench_forces():          # a bench of final or interactive frames times whole frames
+            budget = math.inf
+        if job is None or not self.vp.refine(budget):
             self._show_progress()
             return True
         if self.state.view.view == "heat map" and self.vp.cost_stats is not None:

@@ -110,7 +110,8 @@ def run_session(groom: Path, size: tuple[int, int], out: Path, frames: int, whol
             for name, rx in CONSOLE.items():
                 m = rx.search(line)
                 if m and name not in result:
-                    result[name] = float(m.group(1))
+                    result[name] = float(m.group(1))          # the viewer's clock (from its import)
+                    result[name.replace("_s", "_from_spawn_s")] = t   # this one: from the process start
         rc = proc.wait(timeout=60)
     finally:
         if proc.poll() is None:
@@ -128,6 +129,31 @@ def run_session(groom: Path, size: tuple[int, int], out: Path, frames: int, whol
     return result
 
 
+def contact_sheet(rows: list[tuple[str, list[tuple[Path, str]]]], out: Path, width: int = 480) -> None:
+    """Grabs side by side, a caption under each and a title over each row (PIL only)."""
+    from PIL import Image, ImageDraw
+
+    cells = [[(Image.open(p).convert("RGB"), caption) for p, caption in row if Path(p).is_file()] for _, row in rows]
+    ncol = max((len(r) for r in cells), default=1)
+    scale = width / max((im.width for r in cells for im, _ in r), default=width)
+    cell_h = int(max((im.height for r in cells for im, _ in r), default=270) * scale)
+    title_h, cap_h, pad = 22, 34, 8
+    sheet = Image.new("RGB", (ncol * (width + pad) + pad, len(rows) * (title_h + cell_h + cap_h) + pad), (24, 24, 26))
+    draw = ImageDraw.Draw(sheet)
+    y = pad
+    for (title, _), row in zip(rows, cells):
+        draw.text((pad, y + 4), title, fill=(235, 235, 235))
+        y += title_h
+        for i, (im, caption) in enumerate(row):
+            x = pad + i * (width + pad)
+            sheet.paste(im.resize((width, int(im.height * scale))), (x, y))
+            for j, text in enumerate(caption.split("\n")[:2]):
+                draw.text((x, y + cell_h + 3 + 14 * j), text, fill=(200, 200, 200))
+        y += cell_h + cap_h
+    out.parent.mkdir(parents=True, exist_ok=True)
+    sheet.save(out)
+
+
 def _size(text: str) -> tuple[int, int]:
     w, h = (int(x) for x in text.lower().split("x"))
     return w, h
@@ -142,7 +168,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--skip-whole", action="store_true", help="skip the forced whole interactive/final frames")
     args = ap.parse_args(argv)
     r = run_session(Path(args.groom), args.size, Path(args.out), args.frames, not args.skip_whole)
-    keys = ["window_up_s", "scene_build_s", "first_picture_s", "first_complete_s", "menu_open_s",
+    keys = ["window_up_from_spawn_s", "scene_build_s", "first_picture_from_spawn_s", "first_complete_from_spawn_s",
+            "menu_open_s",
             "refining_final_frame_ms_median", "ui_only_frame_ms_median", "refining_orbit_frame_ms_median",
             "interactive_frame_ms_median",
             "final_frame_ms_median"]
