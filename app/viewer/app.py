@@ -570,7 +570,8 @@ class Viewer:
             weights = self._weights = row_weights(self.scene, cam, size)
             model = self.vp.models.get(("draw", mode, one_pass_aa))
             predicted = model.predict(weights.sum()) if model else None
-            if predicted is None or predicted > REFINE_BUDGET_S:   # it will refine: keep the old picture
+            refines = predicted is None or predicted > self._budget(quality)
+            if refines:                       # it will take several UI frames: keep the old picture
                 if self.vp.samples == 0 and self.vp.job is None:   # none of this scene yet: a sketch
                     self.vp.sketch(self._viewport_rect()[2:], s.params, cam, self.scene)
                 else:
@@ -610,20 +611,23 @@ class Viewer:
     def _refine(self) -> bool:
         """Draw more of the running sample; book it once complete."""
         job = self.vp.job
-        budget = REFINE_BUDGET_S
-        if self._job is not None and self._job["quality"] == "interactive":
-            # an interactive frame near its aim is drawn whole, as a moving picture must be; only one far
-            # past it (a frame of seconds) is drawn in strips
-            budget = max(budget, INTERACTIVE_WHOLE * self.state.view.auto_budget_ms / 1000)
-        if self._bench_forces():          # a bench of final or interactive frames times whole frames
-            budget = math.inf
-        if job is None or not self.vp.refine(budget):
+        if job is None or not self.vp.refine(self._budget(self._job["quality"] if self._job else "final")):
             self._show_progress()
             return True
         if self.state.view.view == "heat map" and self.vp.cost_stats is not None:
             self._publish_cost(self.vp.cost_stats)
         self._sample_done(job.spent_s, "wall")
         return True
+
+    def _budget(self, quality: str) -> float:
+        """Fiber seconds per UI frame for a sample of this quality."""
+        if self._bench_forces():          # a bench of final or interactive frames times whole frames
+            return math.inf
+        if quality == "interactive":
+            # an interactive frame near its aim is drawn whole, as a moving picture must be; only one far
+            # past it (a frame of seconds) is drawn in strips
+            return max(REFINE_BUDGET_S, INTERACTIVE_WHOLE * self.state.view.auto_budget_ms / 1000)
+        return REFINE_BUDGET_S
 
     def _show_progress(self) -> None:
         job = self.vp.job
