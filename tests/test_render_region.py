@@ -1,6 +1,6 @@
 """Renderer.render(region=...): a frame built tile by tile equals the frame rendered whole.
 
-The viewer refines slow frames in strips across UI frames (app/viewer/display.py: Refinement), so every
+The viewer refines slow frames in strips across UI frames (app/viewer/display.py: StripJob), so every
 tile must draw exactly what the whole frame draws there and leave the other pixels alone.
 """
 

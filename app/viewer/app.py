@@ -199,7 +199,8 @@ class Viewer:
         if s.commands or self._script_inputs:
             return 0.0
         if self._loading is not None:
-            return 0.25               # poll the worker; the UI stays drawn meanwhile
+            return 0.2                # poll the worker (input still wakes the loop at once); frames
+                                      # hold the GIL the numpy build in the worker needs
         want, _ = self._plan()
         if want in ("new", "sample", "refine"):
             return 0.0
@@ -474,7 +475,7 @@ class Viewer:
 
     def _startup_lines(self, t: float) -> None:
         """Console lines for the first picture (any part of it) and the first complete frame."""
-        if self._first_full or self.scene is None:
+        if self._first_full or self.scene is None or not target_is_slow(self.state.params):
             return
         vp = self.vp
         some = vp.samples > 0 or (vp.job is not None and vp.job.fraction > 0)
@@ -611,7 +612,14 @@ class Viewer:
     def _refine(self) -> bool:
         """Draw more of the running sample; book it once complete."""
         job = self.vp.job
-        if job is None or not self.vp.refine(self._budget(self._job["quality"] if self._job else "final")):
+        try:
+            done = job is None or self.vp.refine(self._budget(self._job["quality"] if self._job else "final"))
+        except ShaderError as e:      # a variant first compiled by this strip
+            self.vp.invalidate()
+            self._job = None
+            self._shader_failed(e)
+            return False
+        if not done:
             self._show_progress()
             return True
         if self.state.view.view == "heat map" and self.vp.cost_stats is not None:
