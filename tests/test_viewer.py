@@ -607,3 +607,35 @@ def test_a_slow_groom_refines_in_strips_with_the_ui_live_and_ends_exact(tmp_path
     final, whole = _png(t / "final.png"), _png(t / "whole.png")
     assert final.shape == whole.shape
     assert np.abs(final - whole).max() <= 1, "the frame refined in strips should equal the whole frame"
+
+
+@pytest.mark.skipif(not SINTEL.is_file(), reason="the shared hair data is not there")
+def test_the_strand_sketch_joins_each_strands_own_vertices_only(ctx, renderer):
+    from app.scene.grooms import load_groom
+    from app.viewer.app import strand_scene
+    from app.viewer.display import ViewportRenderer
+
+    groom = load_groom(SINTEL)
+    scene = strand_scene(groom)
+    points, offsets = groom.packed()
+    assert scene.n_segments == len(points) - groom.n_strands        # one fewer segment than vertices a strand
+    seg = scene.segments.astype(np.float64)
+    a, b = seg[:, 0:3] + scene.origin, seg[:, 4:7] + scene.origin
+    first = offsets[0]
+    n0 = offsets[1] - first                                          # the first strand, end to end
+    np.testing.assert_allclose(a[: n0 - 1], points[: n0 - 1], atol=1e-4)
+    np.testing.assert_allclose(b[: n0 - 1], points[1:n0], atol=1e-4)
+    np.testing.assert_allclose(a[n0 - 1], points[n0], atol=1e-4)     # the next strand starts afresh
+    assert (seg[:, 3] == 0).all() and (seg[:, 7] == 0).all()
+    # and it draws: a sketch of the strands differs from the background in many pixels
+    p = Params()
+    size = (160, 100)
+    vp = ViewportRenderer(ctx, renderer, renderer.programs)
+    try:
+        vp.sketch(size, p, make_camera(p, scene, size[0] / size[1]), scene)
+        vp.drop_proxies()
+        img = vp.display_offscreen(size, "shaded", p, None, None, 1.0).astype(int)
+        bg = np.round(np.asarray(p["look.background"]) ** (1 / 2.2) * 255)
+        assert (np.abs(img - bg).max(axis=2) > 20).mean() > 0.05
+    finally:
+        vp.release()

@@ -432,6 +432,9 @@ class Viewer:
         job = self._loading
         if job["thread"].is_alive():
             self.state.status = f"loading {job['name']}... {time.perf_counter() - job['t0']:.0f} s"
+            if "groom" in job["box"] and not job.get("sketched"):
+                job["sketched"] = True
+                self._sketch_strands(job["box"]["groom"])
             return False
         self._loading = None
         if self.state.status.startswith("loading "):
@@ -440,6 +443,23 @@ class Viewer:
         if job["key"] == key:             # the parameters did not change meanwhile: use it
             self._adopt_scene(key, job["box"], wall, job["name"])
         return True
+
+    def _sketch_strands(self, groom) -> None:
+        """The first picture of a groom whose containers are still being built: its strands as lines."""
+        t0 = time.perf_counter()
+        preview = strand_scene(groom)
+        if preview.n_segments == 0:
+            return
+        rect = self._viewport_rect()
+        cam = make_camera(self.state.params, preview, rect[2] / max(rect[3], 1))
+        self.vp.sketch(rect[2:], self.state.params, cam, preview)
+        self.vp.drop_proxies()          # the sketch's buffer: the scene's own comes with it
+        self.vp.invalidate()
+        if not self._first_picture:
+            self._first_picture = True
+            print(f"vfiber view: first picture {time.perf_counter() - T_START:.2f} s after start: "
+                  f"{groom.n_strands:,} strands sketched in {time.perf_counter() - t0:.2f} s while the containers "
+                  f"are built", file=sys.stderr, flush=True)
 
     def _adopt_scene(self, key: tuple, box: dict[str, Any], wall: float, name: str | None = None) -> None:
         s = self.state
@@ -883,6 +903,24 @@ class Viewer:
             print(f"vfiber view: OpenGL error after {where}: {err}", file=sys.stderr, flush=True)
 
 
+def strand_scene(groom) -> Scene:
+    """The strands of a groom as zero-radius segments between their own vertices: enough for the sketch
+    (display.ViewportRenderer.sketch draws a container's axis when its radius is 0) and to frame the camera
+    while the real containers are built."""
+    points, offsets = groom.packed()
+    inside = np.ones(max(len(points) - 1, 0), bool)
+    inside[offsets[1:-1] - 1] = False                 # no segment from one strand's tip to the next's root
+    a, b = points[:-1][inside], points[1:][inside]
+    origin = 0.5 * (points.min(0) + points.max(0)) if len(points) else np.zeros(3)
+    axis = b - a
+    rows = np.zeros((len(a), 20))
+    rows[:, 0:3], rows[:, 4:7] = a - origin, b - origin
+    rows[:, 8:11], rows[:, 12:15] = axis, axis           # miter normals along the axis
+    rows[:, 16] = 1.0                                     # a frame vector (unused at radius 0)
+    rows[:, 19] = np.repeat(np.arange(len(offsets) - 1), np.diff(offsets) - 1)   # guide: the strand's colour
+    return Scene(rows, origin, "strands", groom.n_strands)
+
+
 def target_is_slow(params) -> bool:
     """Grooms can take seconds to read and render: they get a console line per stage."""
     return params["scene.generator"] == "groom"
@@ -890,9 +928,18 @@ def target_is_slow(params) -> bool:
 
 def _build_into(params, box: dict[str, Any]) -> None:
     """Build the scene of ``params`` into ``box["scene"]``, or the reason it failed into ``box["error"]``
-    (runs in the loading thread: numpy only, no GL)."""
+    (runs in the loading thread: numpy only, no GL). A groom's strands go into ``box["groom"]`` as soon as
+    the file is read, before its containers are built, so the window can sketch them."""
     try:
-        scene = build_scene(params)
+        if params["scene.generator"] == "groom":      # grooms.scene_from_groom, in its two steps
+            from ..scene.grooms import groom_scene, load_groom
+            t0 = time.perf_counter()
+            groom = load_groom(params["scene.groom_file"], up=params["scene.groom_up"],
+                               scale=params["scene.groom_scale"])
+            box["groom"] = groom
+            scene = groom_scene(groom, params, {"load": time.perf_counter() - t0})
+        else:
+            scene = build_scene(params)
         if scene.n_segments == 0:
             raise ValueError("the parameters give no containers")
         box["scene"] = scene

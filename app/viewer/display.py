@@ -275,13 +275,17 @@ class ViewportRenderer:
     def set_scene(self, scene: Scene) -> None:
         self.renderer.set_scene(scene)
         self.models.clear()          # another scene, another cost per draw
+        self.drop_proxies()
+        self.invalidate()
+
+    def drop_proxies(self) -> None:
+        """Forget the proxies' copy of the segments (the next proxies or sketch draw uploads its scene's)."""
         if self._proxy_buf is not None:
             self._proxy_buf.release()
             self._proxy_buf = None
         for vao in self._proxy_vao.values():
             vao.release()
         self._proxy_vao.clear()
-        self.invalidate()
 
     def invalidate(self) -> None:
         self.job = None
