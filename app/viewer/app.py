@@ -114,6 +114,7 @@ class Viewer:
         self._cost_job: tuple[tuple, StripJob] | None = None    # the overlay's cost render, in strips
         self._loading: dict[str, Any] | None = None # a scene being built in a worker thread
         self._weights = None                        # display.row_weights of the frame being drawn
+        self._frame_fibers_s = 0.0
         self._first_picture = False
         self._first_full = False
         self.gl_errors: list[str] = []
@@ -227,6 +228,7 @@ class Viewer:
     def frame(self, runner: ScriptRunner | None = None) -> None:
         t0 = time.perf_counter()
         refining = self.vp.job is not None or self._cost_job is not None
+        self._frame_fibers_s = 0.0          # strips drawn in this frame (the rest is UI and display)
         dt, self._last_frame = t0 - self._last_frame, t0
         self._poll_shaders()
         if runner is not None:
@@ -266,6 +268,7 @@ class Viewer:
                 self._latency_from = None
         if self._bench is not None and (self._bench["quality"] != "refining" or refining):
             self._bench["frames"].append(done - t0)
+            self._bench["fibers"].append(self._frame_fibers_s)
         self._check_gl("frame")
         if self.state.title != self._title:
             self._title = self.state.title
@@ -632,6 +635,7 @@ class Viewer:
     def _refine(self) -> bool:
         """Draw more of the running sample; book it once complete."""
         job = self.vp.job
+        t0 = time.perf_counter()
         try:
             done = job is None or self.vp.refine(self._budget(self._job["quality"] if self._job else "final"))
         except ShaderError as e:      # a variant first compiled by this strip
@@ -639,6 +643,7 @@ class Viewer:
             self._job = None
             self._shader_failed(e)
             return False
+        self._frame_fibers_s += time.perf_counter() - t0
         if not done:
             self._show_progress()
             return True
@@ -880,7 +885,7 @@ class Viewer:
         return self._bench is not None and self._bench["quality"] in ("final", "interactive")
 
     def bench_begin(self, quality: str) -> None:
-        self._bench = {"quality": quality, "frames": [], "render": [], "size": None}
+        self._bench = {"quality": quality, "frames": [], "render": [], "fibers": [], "size": None}
 
     def bench_frames(self) -> int:
         return len(self._bench["frames"]) if self._bench else 0
@@ -892,6 +897,8 @@ class Viewer:
         return {"quality": b.get("quality"), "path": self.state.view.frame_path, "size": b.get("size"),
                 "frames": len(frames), "frame_ms_median": statistics.median(frames) * 1000 if frames else None,
                 "render_ms_median": statistics.median(render) if render else None,
+                # fiber strips inside those frames (refining): the frame less this is UI, display and swap
+                "fibers_ms_median": statistics.median(b["fibers"]) * 1000 if b.get("fibers") else None,
                 "frame_ms": [round(f * 1000, 1) for f in frames]}
 
     # --- errors ------------------------------------------------------------------------------------

@@ -124,6 +124,8 @@ def run_session(groom: Path, size: tuple[int, int], out: Path, frames: int, whol
     names = ["refining_final", "ui_only", "refining_orbit"] + (["interactive", "final"] if whole else [])
     for name, bench in zip(names, result["benches"]):
         result[f"{name}_frame_ms_median"] = bench.get("frame_ms_median")
+        if name.startswith("refining"):
+            result[f"{name}_fibers_ms_median"] = bench.get("fibers_ms_median")
         result[f"{name}_frames"] = bench.get("frames")
     (out / "session.json").write_text(json.dumps(result, indent=2), encoding="utf-8")
     return result
@@ -170,7 +172,8 @@ def main(argv: list[str] | None = None) -> int:
     r = run_session(Path(args.groom), args.size, Path(args.out), args.frames, not args.skip_whole)
     keys = ["window_up_from_spawn_s", "scene_build_s", "first_picture_from_spawn_s", "first_complete_from_spawn_s",
             "menu_open_s",
-            "refining_final_frame_ms_median", "ui_only_frame_ms_median", "refining_orbit_frame_ms_median",
+            "refining_final_frame_ms_median", "refining_final_fibers_ms_median", "ui_only_frame_ms_median",
+            "refining_orbit_frame_ms_median", "refining_orbit_fibers_ms_median",
             "interactive_frame_ms_median",
             "final_frame_ms_median"]
     load = os.getloadavg()[0]
