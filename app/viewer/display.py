@@ -570,9 +570,9 @@ class ViewportRenderer:
         self._base = fbo
 
     def sketch(self, size: tuple[int, int], p: Params, cam: Camera, scene: Scene) -> None:
-        """A first picture of a scene in milliseconds, as the base under its first strips: one line per
-        container, along its side from root to tip (the side lines of the proxies view), over the
-        background."""
+        """A quick first picture of a scene, as the base under its first strips: one line per container,
+        along its side from root to tip (the side lines of the proxies view, two vertices a container),
+        over the background."""
         fbo = self._next_base(size)
         ctx = self.ctx
         fbo.use()
