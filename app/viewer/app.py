@@ -64,7 +64,7 @@ COST_STATS_MAX_PIXELS = 640 * 360       # the occasional cost render for the sta
 SHADER_POLL_S = 0.5
 SLOW_SCENE_BUILD_S = 0.15               # slower than this: rebuild the scene when the slider is released
 FRAME_HISTORY = 30
-REFINE_BUDGET_S = 0.030                 # fiber time per UI frame while a slow frame refines
+REFINE_BUDGET_S = 0.030                 # fiber time per UI frame while a slow frame refines (at least)
 INTERACTIVE_WHOLE = 1.5                 # interactive frames up to this times auto_budget_ms are drawn whole
 
 
@@ -115,6 +115,7 @@ class Viewer:
         self._loading: dict[str, Any] | None = None # a scene being built in a worker thread
         self._weights = None                        # display.row_weights of the frame being drawn
         self._frame_fibers_s = 0.0
+        self._ui_times: deque[float] = deque(maxlen=FRAME_HISTORY)   # frame time less its strips
         self._first_picture = False
         self._first_full = False
         self.gl_errors: list[str] = []
@@ -266,6 +267,8 @@ class Viewer:
             if self._latency_from is not None:
                 self.state.stats.edit_latency_ms = (done - self._latency_from) * 1000
                 self._latency_from = None
+        if self._frame_fibers_s > 0:
+            self._ui_times.append(done - t0 - self._frame_fibers_s)
         if self._bench is not None and (self._bench["quality"] != "refining" or refining):
             self._bench["frames"].append(done - t0)
             self._bench["fibers"].append(self._frame_fibers_s)
@@ -660,7 +663,10 @@ class Viewer:
             # an interactive frame near its aim is drawn whole, as a moving picture must be; only one far
             # past it (a frame of seconds) is drawn in strips
             return max(REFINE_BUDGET_S, INTERACTIVE_WHOLE * self.state.view.auto_budget_ms / 1000)
-        return REFINE_BUDGET_S
+        # at least as long as the UI's own part of a frame: where the UI is slow (a loaded machine) strips
+        # of 30 ms would leave the refinement a fraction of the time and the frame take many times longer
+        ui = statistics.median(self._ui_times) if self._ui_times else 0.0
+        return max(REFINE_BUDGET_S, ui)
 
     def _show_progress(self) -> None:
         job = self.vp.job
