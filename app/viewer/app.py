@@ -12,7 +12,7 @@ One frame::
 Speed for accuracy: while something changes (a slider held, the camera moving, the turntable) the fibers
 render at the interactive scale (and fast mode by default); after ``refine_delay`` seconds of stillness
 the final frame renders at ``quality.render_scale`` in ``quality.mode`` and then accumulates
-``quality.supersample``^2 stratified samples. A sample that costs more than ``REFINE_BUDGET_S`` is drawn in
+``quality.supersample``^2 stratified samples. A sample that costs more than ``view.refine_budget_ms`` is drawn in
 strips across UI frames (display.StripJob) over the picture that was on screen, with "refining n%" in the
 corner, so input, menus and the panel keep running whatever a frame costs. When nothing is out of date the
 loop sleeps in ``glfw.wait_events_timeout``.
@@ -64,7 +64,6 @@ COST_STATS_MAX_PIXELS = 640 * 360       # the occasional cost render for the sta
 SHADER_POLL_S = 0.5
 SLOW_SCENE_BUILD_S = 0.15               # slower than this: rebuild the scene when the slider is released
 FRAME_HISTORY = 30
-REFINE_BUDGET_S = 0.030                 # fiber time per UI frame while a slow frame refines (at least)
 INTERACTIVE_WHOLE = 1.5                 # interactive frames up to this times auto_budget_ms are drawn whole
 
 
@@ -577,7 +576,7 @@ class Viewer:
 
     def render(self) -> bool:
         """Bring the fiber image up to date: start a sample, or draw more of the running one (about
-        REFINE_BUDGET_S of fibers per UI frame). Returns True when it drew fibers."""
+        view.refine_budget_ms of fibers per UI frame). Returns True when it drew fibers."""
         s = self.state
         what, key = self._plan()
         if what == "refine":
@@ -659,14 +658,15 @@ class Viewer:
         """Fiber seconds per UI frame for a sample of this quality."""
         if self._bench_forces():          # a bench of final or interactive frames times whole frames
             return math.inf
+        budget = self.state.view.refine_budget_ms / 1000
         if quality == "interactive":
             # an interactive frame near its aim is drawn whole, as a moving picture must be; only one far
             # past it (a frame of seconds) is drawn in strips
-            return max(REFINE_BUDGET_S, INTERACTIVE_WHOLE * self.state.view.auto_budget_ms / 1000)
+            return max(budget, INTERACTIVE_WHOLE * self.state.view.auto_budget_ms / 1000)
         # at least as long as the UI's own part of a frame: where the UI is slow (a loaded machine) strips
         # of 30 ms would leave the refinement a fraction of the time and the frame take many times longer
         ui = statistics.median(self._ui_times) if self._ui_times else 0.0
-        return max(REFINE_BUDGET_S, ui)
+        return max(budget, ui)
 
     def _show_progress(self) -> None:
         job = self.vp.job
@@ -722,7 +722,7 @@ class Viewer:
 
     def _maybe_cost_stats(self) -> None:
         """The overlay's fiber tests per pixel: a small cost render once the view has settled, drawn in
-        strips like a slow frame (REFINE_BUDGET_S per UI frame)."""
+        strips like a slow frame."""
         s = self.state
         if self.vp.cost_stats is not None:
             s.stats.cost_age_s = time.perf_counter() - self.vp.cost_stats.at
@@ -745,7 +745,7 @@ class Viewer:
             self._cost_job = (self._shown_key, job)
         job = self._cost_job[1]
         try:
-            done = job.step(REFINE_BUDGET_S)
+            done = job.step(self._budget("final"))
         except ShaderError as e:
             self._cost_job = None
             self._shader_failed(e)

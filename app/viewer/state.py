@@ -48,6 +48,7 @@ class ViewSettings:
     interactive_mode: str = "fast"       # "fast" (thesis order, first hit) or "final mode" (quality.mode)
     auto_budget_ms: float = 120.0        # "auto" scale aims the interactive render at this time
     refine_delay: float = 0.3            # seconds of stillness before the final frame
+    refine_budget_ms: float = 30.0       # fiber time per UI frame while a slow frame refines in strips
     frame_path: str = "direct"           # "direct": draw from the renderer's texture; "readback": via numpy
     heat_max: float = 0.0                # heat-map top of scale, fiber tests; 0 = automatic (99th percentile)
     turntable: bool = False
