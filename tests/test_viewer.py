@@ -322,6 +322,7 @@ def test_scripted_session_renders_reacts_saves_and_survives_a_bad_preset(tmp_pat
         {"print": "params"},
         {"print": "dirty"},
         {"print": "gl_error"},
+        {"wait_for": "tests_per_pixel", "timeout": 60},   # the overlay's cost render refines in strips
         {"print": "stats"},
         {"quit": 0},
     ]}
@@ -513,3 +514,129 @@ def test_bundled_preset_menu_and_osl_export(tmp_path):
     if has_osl:
         assert (tmp_path / "look.osl").stat().st_size > 0
     assert got["gl_error"] == [[]]
+
+
+# --------------------------------------------------------------------------------------------------
+# issue 12: slow frames refine in strips across UI frames
+
+def test_a_sample_refined_in_strips_shows_the_frame_drawn_whole(ctx, renderer):
+    from app.viewer.display import ViewportRenderer
+
+    p = Params({"scene.generator": "furball", "fibers.rings": 6})
+    from app.scene.generators import build_scene
+    scene = build_scene(p)
+    size = (160, 100)
+    cam = make_camera(p, scene, size[0] / size[1])
+    vp = ViewportRenderer(ctx, renderer, renderer.programs)
+    vp.set_scene(scene)
+    vp.resize(size)
+    try:
+        vp.render_sample(p, cam, "exact", (0.0, 0.0), "direct", with_ids=True)
+        whole = {v: vp.display_offscreen(size, v, p, cam, scene, 1.0) for v in ("shaded", "fiber ids")}
+        bg = vp.display_offscreen(size, "shaded", p, cam, scene, 1.0)
+        vp.invalidate()
+        job = vp.begin_sample(p, cam, "exact", (0.0, 0.0))
+        steps, halfway = 0, None
+        while not vp.refine(1e-5):                          # a budget nothing fits: one strip per step
+            steps += 1
+            if halfway is None and 0.3 < job.fraction < 0.8:
+                halfway = (job.done_rect(), vp.display_offscreen(size, "shaded", p, cam, scene, 1.0))
+        assert steps >= 3 and job.strips >= 4 and vp.samples == 1
+        for view, want in whole.items():
+            np.testing.assert_array_equal(vp.display_offscreen(size, view, p, cam, scene, 1.0), want)
+        # while refining: the finished strips (top rows) as the whole frame, the background below them
+        assert halfway is not None
+        (_, y, _, h), shown = halfway
+        done_rows = size[1] - y                             # read-backs are top row first
+        np.testing.assert_array_equal(shown[:done_rows], whole["shaded"][:done_rows])
+        background = np.round(np.asarray(p["look.background"]) ** (1 / 2.2) * 255)
+        assert np.abs(shown[done_rows:].astype(int) - background).max() <= 1
+        assert not np.array_equal(bg[done_rows:], shown[done_rows:]), "the rows to come should not show yet"
+    finally:
+        vp.release()
+
+
+def test_strips_are_sized_by_where_the_containers_are(ctx, renderer):
+    from app.scene.generators import build_scene
+    from app.viewer.display import row_weights
+
+    p = Params({"scene.generator": "furball", "fibers.rings": 6})
+    scene = build_scene(p)
+    renderer.set_scene(scene)
+    size = (160, 100)
+    cam = make_camera(p, scene, size[0] / size[1])
+    cost = renderer.render(p, cam, size, outputs=("cost",), mode="exact").cost[::-1]   # GL rows
+    fragments = cost[..., 2].sum(axis=1)                   # container fragments per row
+    weights = row_weights(scene, cam, size)
+    assert weights.shape == (size[1],) and (weights > 0).all()
+    busy, empty = fragments > 0.5 * fragments.max(), fragments == 0
+    assert busy.any() and empty.any()
+    assert weights[busy].mean() > 3 * weights[empty].mean()
+    assert np.corrcoef(weights, fragments)[0, 1] > 0.8
+
+
+SINTEL = ROOT / ".." / "shared" / "hair-data" / "sintel_hair.tfx"
+
+
+@needs_xvfb
+@pytest.mark.skipif(not SINTEL.is_file(), reason="the shared hair data is not there")
+def test_a_slow_groom_refines_in_strips_with_the_ui_live_and_ends_exact(tmp_path):
+    t = tmp_path
+    script = {"size": [960, 540], "steps": [
+        {"viewer": {"refine_budget_ms": 1.0}},                 # strips, however fast this machine draws
+        {"wait": 1},
+        {"bench": 3, "quality": "refining", "timeout": 120},    # UI frames that drew strips
+        {"print": "refining"},
+        {"grab": str(t / "refining.png"), "ui": True},
+        {"wait_final": True},
+        {"grab": str(t / "final.png")},
+        {"screenshot": str(t / "whole.png")},                  # the same view rendered whole, offscreen
+        {"print": "frame_gpu_bytes"},
+        {"print": "viewer_gpu_bytes"},
+        {"print": "gl_error"},
+        {"quit": 0},
+    ]}
+    lines, err, rc = _viewer(script, tmp_path, str(SINTEL.resolve()))
+    assert rc == 0, err
+    got = _merged(lines)
+    assert "loading sintel_hair.tfx" in err and "container segments in" in err and "first picture" in err
+    bench = got["bench"][0]
+    assert bench["quality"] == "refining" and bench["frames"] == 3, bench
+    assert 0.0 < got["refining"][0] < 1.0
+    assert got["viewer_gpu_bytes"][0] > 0
+    assert got["gl_error"] == [[]]
+    final, whole = _png(t / "final.png"), _png(t / "whole.png")
+    assert final.shape == whole.shape
+    assert np.abs(final - whole).max() <= 1, "the frame refined in strips should equal the whole frame"
+
+
+@pytest.mark.skipif(not SINTEL.is_file(), reason="the shared hair data is not there")
+def test_the_strand_sketch_joins_each_strands_own_vertices_only(ctx, renderer):
+    from app.scene.grooms import load_groom
+    from app.viewer.app import strand_scene
+    from app.viewer.display import ViewportRenderer
+
+    groom = load_groom(SINTEL)
+    scene = strand_scene(groom)
+    points, offsets = groom.packed()
+    assert scene.n_segments == len(points) - groom.n_strands        # one fewer segment than vertices a strand
+    seg = scene.segments.astype(np.float64)
+    a, b = seg[:, 0:3] + scene.origin, seg[:, 4:7] + scene.origin
+    first = offsets[0]
+    n0 = offsets[1] - first                                          # the first strand, end to end
+    np.testing.assert_allclose(a[: n0 - 1], points[: n0 - 1], atol=1e-4)
+    np.testing.assert_allclose(b[: n0 - 1], points[1:n0], atol=1e-4)
+    np.testing.assert_allclose(a[n0 - 1], points[n0], atol=1e-4)     # the next strand starts afresh
+    assert (seg[:, 3] == 0).all() and (seg[:, 7] == 0).all()
+    # and it draws: a sketch of the strands differs from the background in many pixels
+    p = Params()
+    size = (160, 100)
+    vp = ViewportRenderer(ctx, renderer, renderer.programs)
+    try:
+        vp.sketch(size, p, make_camera(p, scene, size[0] / size[1]), scene)
+        vp.drop_proxies()
+        img = vp.display_offscreen(size, "shaded", p, None, None, 1.0).astype(int)
+        bg = np.round(np.asarray(p["look.background"]) ** (1 / 2.2) * 255)
+        assert (np.abs(img - bg).max(axis=2) > 20).mean() > 0.05
+    finally:
+        vp.release()

@@ -215,6 +215,19 @@ class Renderer:
                    "MSAA_SAMPLES": msaa}
         return self.programs.get(self.ctx, "stages/container.vert", "stages/container.frag", defines)
 
+    def compile_programs(self, p: Params, mode: str, cost: bool = False, antialias: bool = False) -> None:
+        """Compile what a frame of ``p`` in ``mode`` may draw with, under either visibility: before a
+        frame is split into strips, and to check a shader reload. Raises ShaderError."""
+        ss = p["quality.supersample"] if antialias and mode != "brute" else 1
+        msaa = self._msaa_samples(p) if antialias and mode != "brute" else 0
+        self.proxy_program(p, mode, cost, supersample=ss if not msaa else 1, msaa=0 if cost else msaa)
+        self.program(p, mode, cost)
+        if not cost:
+            self.program(p, mode, False, stage="resolve")
+        for vert, frag in (("stages/coverage.vert", "stages/coverage.frag"),
+                           ("stages/fullscreen_depth.vert", "stages/mark_done.frag")):
+            self.programs.get(self.ctx, vert, frag, {})
+
     def program(self, p: Params, mode: str, cost: bool, stage: str = "walk") -> moderngl.Program:
         """The walk strategy's pass (``stage`` "walk") or the shading of its winners ("resolve")."""
         defines = {"TRAVERSAL": MODES[mode], "MAX_RINGS": MAX_RINGS, "MAX_SUB": MAX_SUB, "WALK_CAP": WALK_CAP,

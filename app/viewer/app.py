@@ -12,11 +12,20 @@ One frame::
 Speed for accuracy: while something changes (a slider held, the camera moving, the turntable) the fibers
 render at the interactive scale (and fast mode by default); after ``refine_delay`` seconds of stillness
 the final frame renders at ``quality.render_scale`` in ``quality.mode`` and then accumulates
-``quality.supersample``^2 stratified samples, one per frame, so input is never blocked for more than one
-sample. When nothing is out of date the loop sleeps in ``glfw.wait_events_timeout``.
+``quality.supersample``^2 stratified samples. A sample that costs more than ``view.refine_budget_ms`` is drawn in
+strips across UI frames (display.StripJob) over the picture that was on screen, with "refining n%" in the
+corner, so input, menus and the panel keep running whatever a frame costs. When nothing is out of date the
+loop sleeps in ``glfw.wait_events_timeout``.
+
+A groom file is read and turned into containers in a worker thread (numpy only; every GL call stays on
+this thread), so the window is up and drawing while a big groom loads; the console gets a line per stage.
 """
 
 from __future__ import annotations
+
+import time
+
+T_START = time.perf_counter()   # before the heavy imports: "first picture after n s" counts from here
 
 # imgui_bundle first: it points pyGLFW at its own libglfw, so both talk to one glfw.
 from imgui_bundle import imgui  # noqa: I001  (import order matters, see above)
@@ -27,7 +36,7 @@ import importlib.util
 import math
 import statistics
 import sys
-import time
+import threading
 from collections import deque
 from pathlib import Path
 from typing import Any
@@ -43,8 +52,9 @@ from ..render.camera import Camera
 from ..render.renderer import Renderer
 from ..scene.containers import Scene
 from ..scene.generators import build_scene
-from .display import ViewportRenderer, auto_scale, render_still, supersample_offsets
-from .gui import Layout, gui
+from .display import (CostModel, StripJob, ViewportRenderer, auto_scale, cost_stats, render_still, row_weights,
+                      supersample_offsets)
+from .gui import Layout, gui, refine_overlay
 from .navigate import CameraController, Input, make_camera
 from .script import Script, ScriptError, ScriptRunner, emit, load_script
 from .state import AppState, explicit_bytes, is_groom_path, now
@@ -54,6 +64,7 @@ COST_STATS_MAX_PIXELS = 640 * 360       # the occasional cost render for the sta
 SHADER_POLL_S = 0.5
 SLOW_SCENE_BUILD_S = 0.15               # slower than this: rebuild the scene when the slider is released
 FRAME_HISTORY = 30
+INTERACTIVE_WHOLE = 1.5                 # interactive frames up to this times auto_budget_ms are drawn whole
 
 
 def _scale_fraction(name: str) -> float | None:
@@ -98,6 +109,14 @@ class Viewer:
         self._layout = Layout(0, 0, *size)
         self._last_frame = time.perf_counter()
         self._bench: dict[str, Any] | None = None
+        self._job: dict[str, Any] | None = None     # the sample being refined: key, quality, scale, mode
+        self._cost_job: tuple[tuple, StripJob] | None = None    # the overlay's cost render, in strips
+        self._loading: dict[str, Any] | None = None # a scene being built in a worker thread
+        self._weights = None                        # display.row_weights of the frame being drawn
+        self._frame_fibers_s = 0.0
+        self._ui_times: deque[float] = deque(maxlen=FRAME_HISTORY)   # frame time less its strips
+        self._first_picture = False
+        self._first_full = False
         self.gl_errors: list[str] = []
         self.exit_code: int | None = None
         self.state.stats.gl_renderer = f"{self.ctx.info['GL_RENDERER']} | {self.ctx.info['GL_VERSION']}"
@@ -106,6 +125,9 @@ class Viewer:
         except ImportError:
             self.state.osl_available = False
         self._check_gl("startup")
+        if target_is_slow(state.params):
+            print(f"vfiber view: window up {time.perf_counter() - T_START:.2f} s after start", file=sys.stderr,
+                  flush=True)
 
     # --- setup -------------------------------------------------------------------------------------
     def _init_imgui(self) -> None:
@@ -177,8 +199,11 @@ class Viewer:
             return 0.0
         if s.commands or self._script_inputs:
             return 0.0
+        if self._loading is not None:
+            return 0.2                # poll the worker (input still wakes the loop at once); frames
+                                      # hold the GIL the numpy build in the worker needs
         want, _ = self._plan()
-        if want in ("new", "sample"):
+        if want in ("new", "sample", "refine"):
             return 0.0
         if want == "final-wait":  # interactive frame on screen: sleep until it is time to refine
             return max(s.view.refine_delay - (now() - s.last_change), 0.02)
@@ -202,6 +227,8 @@ class Viewer:
 
     def frame(self, runner: ScriptRunner | None = None) -> None:
         t0 = time.perf_counter()
+        refining = self.vp.job is not None or self._cost_job is not None
+        self._frame_fibers_s = 0.0          # strips drawn in this frame (the rest is UI and display)
         dt, self._last_frame = t0 - self._last_frame, t0
         self._poll_shaders()
         if runner is not None:
@@ -210,6 +237,7 @@ class Viewer:
         imgui.backends.glfw_new_frame()
         imgui.new_frame()
         self._layout = gui(self.state)
+        refine_overlay(self.state, self._layout)
         self._navigate(dt)
         self._commands()
         self._update_scene()
@@ -231,14 +259,18 @@ class Viewer:
             self._save_grab((0, 0) + self.framebuffer_size())
         self.glfw.swap_buffers(self.window)
         done = time.perf_counter()
+        self._startup_lines(done)
         if rendered:
             self._frame_times.append(done - t0)
             self.state.stats.frame_ms = statistics.median(self._frame_times) * 1000
             if self._latency_from is not None:
                 self.state.stats.edit_latency_ms = (done - self._latency_from) * 1000
                 self._latency_from = None
-        if self._bench is not None:
+        if self._frame_fibers_s > 0:
+            self._ui_times.append(done - t0 - self._frame_fibers_s)
+        if self._bench is not None and (self._bench["quality"] != "refining" or refining):
             self._bench["frames"].append(done - t0)
+            self._bench["fibers"].append(self._frame_fibers_s)
         self._check_gl("frame")
         if self.state.title != self._title:
             self._title = self.state.title
@@ -365,6 +397,8 @@ class Viewer:
     def _update_scene(self) -> None:
         s = self.state
         key = tuple((k, v) for k, v in s.params.values.items() if k.startswith("scene."))
+        if self._loading is not None and not self._loading_done(key):
+            return
         if key == self._built_scene_key:
             s.scene_error = None
             return
@@ -374,27 +408,110 @@ class Viewer:
             s.status = "the scene rebuilds when you release the slider"
             return
         self._scene_key = key
-        t0 = time.perf_counter()
-        try:
-            scene = build_scene(s.params)
-            if scene.n_segments == 0:
-                raise ValueError("the parameters give no containers")
-        except Exception as e:  # a groom that does not load, a generator that fails: keep the old scene
-            s.scene_error = f"{type(e).__name__}: {e}"
+        params = s.params
+        if target_is_slow(params):                   # a groom can take seconds: build it beside the UI
+            box: dict[str, Any] = {}
+            name = Path(params["scene.groom_file"]).name
+            try:
+                size = f" ({Path(params['scene.groom_file']).stat().st_size / 1e6:.1f} MB)"
+            except OSError:
+                size = ""
+            print(f"vfiber view: loading {name}{size}: reading strands, building containers...", file=sys.stderr,
+                  flush=True)
+            thread = threading.Thread(target=_build_into, args=(params, box), name="vfiber-scene", daemon=True)
+            self._loading = {"key": key, "box": box, "thread": thread, "t0": time.perf_counter(), "name": name}
+            s.status = f"loading {name}..."
+            thread.start()
             return
-        self._scene_build_s = time.perf_counter() - t0
-        s.stats.scene_build_ms = self._scene_build_s * 1000
+        t0 = time.perf_counter()
+        box = {}
+        _build_into(params, box)
+        self._adopt_scene(key, box, time.perf_counter() - t0)
+
+    def loading(self) -> bool:
+        """A scene is being built in the worker thread (scripts wait for it)."""
+        return self._loading is not None
+
+    def _loading_done(self, key: tuple) -> bool:
+        """Take the worker's scene once it is built; False while it is still building."""
+        job = self._loading
+        if job["thread"].is_alive():
+            self.state.status = f"loading {job['name']}... {time.perf_counter() - job['t0']:.0f} s"
+            if "groom" in job["box"] and not job.get("sketched"):
+                job["sketched"] = True
+                self._sketch_strands(job["box"]["groom"])
+            return False
+        self._loading = None
+        if self.state.status.startswith("loading "):
+            self.state.status = ""
+        wall = time.perf_counter() - job["t0"]
+        if job["key"] == key:             # the parameters did not change meanwhile: use it
+            self._adopt_scene(key, job["box"], wall, job["name"])
+        return True
+
+    def _sketch_strands(self, groom) -> None:
+        """The first picture of a groom whose containers are still being built: its strands as lines."""
+        t0 = time.perf_counter()
+        preview = strand_scene(groom)
+        if preview.n_segments == 0:
+            return
+        rect = self._viewport_rect()
+        cam = make_camera(self.state.params, preview, rect[2] / max(rect[3], 1))
+        self.vp.sketch(rect[2:], self.state.params, cam, preview)
+        self.vp.drop_proxies()          # the sketch's buffer: the scene's own comes with it
+        self.vp.invalidate()
+        if not self._first_picture:
+            self._first_picture = True
+            print(f"vfiber view: first picture {time.perf_counter() - T_START:.2f} s after start: "
+                  f"{groom.n_strands:,} strands sketched in {time.perf_counter() - t0:.2f} s while the containers "
+                  f"are built", file=sys.stderr, flush=True)
+
+    def _adopt_scene(self, key: tuple, box: dict[str, Any], wall: float, name: str | None = None) -> None:
+        s = self.state
+        if "error" in box:   # a groom that does not load, a generator that fails: keep the old scene
+            s.scene_error = box["error"]
+            if name:
+                print(f"vfiber view: {name}: {box['error']}", file=sys.stderr, flush=True)
+            return
+        scene = box["scene"]
+        self._scene_build_s = wall
+        s.stats.scene_build_ms = wall * 1000
         if s.status.startswith("the scene rebuilds"):
             s.status = ""
         s.scene_error = None
+        t0 = time.perf_counter()
         self.scene = scene
         self._built_scene_key = key
         self.vp.set_scene(scene)
+        self.ctx.finish()
+        upload = time.perf_counter() - t0
         self._shown_key = None
         self._cost_key = None
+        self._cost_job = None
         s.stats.guides = scene.n_guides
         s.stats.segments = scene.n_segments
         s.stats.scene_gpu_bytes = self.renderer.scene_gpu_bytes
+        if name:
+            src = getattr(scene, "source", None)
+            stages = ", ".join(f"{k} {v:.2f} s" for k, v in (getattr(src, "seconds", None) or {}).items())
+            strands = f"{src.strands:,} strands -> " if src is not None else ""
+            print(f"vfiber view: {name}: {strands}{scene.n_segments:,} container segments in {wall:.2f} s "
+                  f"({stages}); {scene.nbytes / 1e6:.1f} MB uploaded in {upload:.2f} s", file=sys.stderr, flush=True)
+
+    def _startup_lines(self, t: float) -> None:
+        """Console lines for the first picture (any part of it) and the first complete frame."""
+        if self._first_full or self.scene is None or not target_is_slow(self.state.params):
+            return
+        vp = self.vp
+        some = vp.samples > 0 or (vp.job is not None and vp.job.fraction > 0)
+        if some and not self._first_picture:
+            self._first_picture = True
+            part = "" if vp.samples > 0 else f" ({vp.job.fraction:.0%} of it; the rest refines)"
+            print(f"vfiber view: first picture {t - T_START:.2f} s after start{part}", file=sys.stderr, flush=True)
+        if vp.samples > 0 and self._shown_key is not None:
+            self._first_full = True
+            print(f"vfiber view: first complete frame {t - T_START:.2f} s after start ({self.state.stats.label}, "
+                  f"fibers {self.state.stats.render_ms / 1000:.2f} s)", file=sys.stderr, flush=True)
 
     def _update_counts(self) -> None:
         s, scene = self.state, self.scene
@@ -411,7 +528,7 @@ class Viewer:
         s = self.state
         p = s.params
         moving = s.dragging or s.view.turntable or (now() - s.last_change) < s.view.refine_delay
-        if self._bench is not None and self._bench["quality"] != "ui":
+        if self._bench_forces():
             moving = self._bench["quality"] == "interactive"
         if not moving:
             return "final", p["quality.render_scale"], p["quality.mode"]
@@ -436,7 +553,16 @@ class Viewer:
         size = self._render_size(scale)
         key = (tuple(s.params.values.items()), s.view.view, size, mode, s.view.frame_path, quality,
                id(self.scene), id(self.programs))
-        if key != self._shown_key or (self._bench is not None and self._bench["quality"] != "ui"):
+        job = self._job
+        if job is not None and self.vp.job is not None:
+            if key == job["key"]:
+                return "refine", key
+            # while things keep moving, an interactive frame is finished before the newest one starts:
+            # a picture every few UI frames beats strips of a picture that is never completed
+            same_view = key[1:5] == job["key"][1:5] and key[6:] == job["key"][6:]
+            if job["quality"] == quality == "interactive" and same_view:
+                return "refine", job["key"]
+        if key != self._shown_key or self._bench_forces():
             return "new", key
         if quality == "final" and s.view.view in ("shaded", "proxies") and self.vp.samples < self._final_wanted:
             return "sample", key
@@ -449,9 +575,12 @@ class Viewer:
         return what is None and self._shown_quality == "final"
 
     def render(self) -> bool:
-        """Bring the fiber image up to date by at most one sample. Returns True when it rendered."""
+        """Bring the fiber image up to date: start a sample, or draw more of the running one (about
+        view.refine_budget_ms of fibers per UI frame). Returns True when it drew fibers."""
         s = self.state
         what, key = self._plan()
+        if what == "refine":
+            return self._refine()
         if what not in ("new", "sample"):
             self._maybe_cost_stats()
             return False
@@ -459,10 +588,20 @@ class Viewer:
         size = key[2]
         cam = make_camera(s.params, self.scene, size[0] / max(size[1], 1))
         # MSAA happens inside one renderer pass (with the shader's supersampling if both are set); plain
-        # supersampling accumulates one stratified sample per frame, so input is never blocked for long
+        # supersampling accumulates one stratified sample per frame
         one_pass_aa = quality == "final" and s.params["quality.msaa"] > 0
         if what == "new":
             self._update_counts()
+            self._cost_job = None
+            weights = self._weights = row_weights(self.scene, cam, size)
+            model = self.vp.models.get(("draw", mode, one_pass_aa))
+            predicted = model.predict(weights.sum()) if model else None
+            refines = predicted is None or predicted > self._budget(quality)
+            if refines:                       # it will take several UI frames: keep the old picture
+                if self.vp.samples == 0 and self.vp.job is None:   # none of this scene yet: a sketch
+                    self.vp.sketch(self._viewport_rect()[2:], s.params, cam, self.scene)
+                else:
+                    self.vp.snapshot(self._viewport_rect()[2:])
             self.vp.resize(size)
             self.vp.invalidate()
             accumulates = quality == "final" and s.view.view in ("shaded", "proxies") and not one_pass_aa
@@ -471,25 +610,19 @@ class Viewer:
                 self._latency_from, s.last_edit = s.last_edit, None
         offsets = supersample_offsets(s.params["quality.supersample"]) if quality == "final" else [(0.0, 0.0)]
         offset = offsets[self.vp.samples % len(offsets)]
+        self._job = {"key": key, "quality": quality, "scale": scale, "mode": mode, "cam": cam}
         try:
             if s.view.view == "heat map":
-                t0 = time.perf_counter()
-                stats = self.vp.render_cost(s.params, cam, mode, size, upload=True)
-                self._publish_cost(stats)
-                wall = time.perf_counter() - t0
-                s.stats.render_ms, s.stats.render_clock = wall * 1000, "wall"
-                self.vp.samples = 1
                 self._final_wanted = 1
+                self.vp.begin_cost(s.params, cam, mode, weights=self._weights)
+                return self._refine()
+            elif s.view.frame_path == "direct" and not one_pass_aa:
+                self.vp.begin_sample(s.params, cam, mode, offset, weights=self._weights)
+                return self._refine()
             else:
                 timing = self.vp.render_sample(s.params, cam, mode, offset, s.view.frame_path,
                                                with_ids=s.view.view in IDS_VIEWS, antialias=one_pass_aa)
-                s.stats.render_ms, s.stats.render_clock = timing.best_s * 1000, timing.clock
-                mpix = size[0] * size[1] / 1e6
-                if mpix > 0:
-                    rate = timing.best_s * 1000 / mpix
-                    self._ms_per_mpix = rate if self._ms_per_mpix is None else 0.5 * (self._ms_per_mpix + rate)
-                if self.vp.fallback_reason and s.view.frame_path == "direct":
-                    s.status = self.vp.fallback_reason
+                self._sample_done(timing.best_s, timing.clock)
         except ShaderError as e:
             self._shader_failed(e)
             return False
@@ -497,7 +630,66 @@ class Viewer:
             s.errors[e.key or "quality.mode"] = e.bare
             s.status = f"error: {e}"
             self._shown_key = key     # do not retry every frame; a change of any value tries again
+            self._job = None
             return False
+        return True
+
+    def _refine(self) -> bool:
+        """Draw more of the running sample; book it once complete."""
+        job = self.vp.job
+        t0 = time.perf_counter()
+        try:
+            done = job is None or self.vp.refine(self._budget(self._job["quality"] if self._job else "final"))
+        except ShaderError as e:      # a variant first compiled by this strip
+            self.vp.invalidate()
+            self._job = None
+            self._shader_failed(e)
+            return False
+        self._frame_fibers_s += time.perf_counter() - t0
+        if not done:
+            self._show_progress()
+            return True
+        if self.state.view.view == "heat map" and self.vp.cost_stats is not None:
+            self._publish_cost(self.vp.cost_stats)
+        self._sample_done(job.spent_s, "wall")
+        return True
+
+    def _budget(self, quality: str) -> float:
+        """Fiber seconds per UI frame for a sample of this quality."""
+        if self._bench_forces():          # a bench of final or interactive frames times whole frames
+            return math.inf
+        budget = self.state.view.refine_budget_ms / 1000
+        if quality == "interactive":
+            # an interactive frame near its aim is drawn whole, as a moving picture must be; only one far
+            # past it (a frame of seconds) is drawn in strips
+            return max(budget, INTERACTIVE_WHOLE * self.state.view.auto_budget_ms / 1000)
+        # at least as long as the UI's own part of a frame: where the UI is slow (a loaded machine) strips
+        # of 30 ms would leave the refinement a fraction of the time and the frame take many times longer
+        ui = statistics.median(self._ui_times) if self._ui_times else 0.0
+        return max(budget, ui)
+
+    def _show_progress(self) -> None:
+        job = self.vp.job
+        st = self.state.stats
+        if job is None:
+            st.refining = None
+            return
+        wanted = max(self._final_wanted, 1)
+        st.refining = (self.vp.samples + job.fraction) / wanted
+
+    def _sample_done(self, seconds: float, clock: str) -> None:
+        s, job = self.state, self._job
+        self._job = None
+        s.stats.refining = None
+        if job is None:
+            return
+        key, quality, scale, mode = job["key"], job["quality"], job["scale"], job["mode"]
+        size = key[2]
+        s.stats.render_ms, s.stats.render_clock = seconds * 1000, clock
+        mpix = size[0] * size[1] / 1e6
+        if mpix > 0 and s.view.view != "heat map":
+            rate = seconds * 1000 / mpix
+            self._ms_per_mpix = rate if self._ms_per_mpix is None else 0.5 * (self._ms_per_mpix + rate)
         if self._bench is not None:
             self._bench["render"].append(s.stats.render_ms)
             self._bench["size"] = size
@@ -511,8 +703,12 @@ class Viewer:
             s.stats.label = f"interactive {pct} {mode}"
         s.stats.render_size = size
         s.stats.samples = (self.vp.samples, self._final_wanted)
-        s.stats.depth_range = self.vp.depth_range(cam, self.scene)
-        return True
+        s.stats.depth_range = self.vp.depth_range(job["cam"], self.scene)
+        # per-pixel buffers beside the scene's bytes: the renderer's at this size (its own count; None from
+        # a renderer that keeps none) and the viewer's (accumulation, uploads, base pictures)
+        hook = getattr(self.renderer, "frame_gpu_bytes", None)
+        s.stats.frame_gpu_bytes = int(hook(size)) if hook is not None else None
+        s.stats.viewer_gpu_bytes = self.vp.buffer_bytes()
 
     def _heat_max(self) -> float:
         s = self.state
@@ -525,7 +721,8 @@ class Viewer:
         st.cost_age_s = 0.0
 
     def _maybe_cost_stats(self) -> None:
-        """The overlay's fiber tests per pixel: a small cost render once the view has settled."""
+        """The overlay's fiber tests per pixel: a small cost render once the view has settled, drawn in
+        strips like a slow frame."""
         s = self.state
         if self.vp.cost_stats is not None:
             s.stats.cost_age_s = time.perf_counter() - self.vp.cost_stats.at
@@ -534,17 +731,31 @@ class Viewer:
         if s.view.view == "heat map":
             self._cost_key = self._shown_key
             return
-        w, h = self._render_size(1.0)
-        k = min(1.0, math.sqrt(COST_STATS_MAX_PIXELS / (w * h)))
-        size = (max(1, int(w * k)), max(1, int(h * k)))
+        if self._cost_job is None or self._cost_job[0] != self._shown_key:
+            w, h = self._render_size(1.0)
+            k = min(1.0, math.sqrt(COST_STATS_MAX_PIXELS / (w * h)))
+            size = (max(1, int(w * k)), max(1, int(h * k)))
+            p, mode = s.params, s.params["quality.mode"]
+            cam = make_camera(p, self.scene, w / max(h, 1))
+
+            def draw(region):
+                return self.renderer.render(p, cam, size, outputs=("cost",), mode=mode, region=region)
+            model = self.vp.models.setdefault(("cost", mode), CostModel())
+            job = StripJob(size, draw, model, self.ctx.finish, row_weights(self.scene, cam, size))
+            self._cost_job = (self._shown_key, job)
+        job = self._cost_job[1]
         try:
-            stats = self.vp.render_cost(s.params, make_camera(s.params, self.scene, w / max(h, 1)),
-                                        s.params["quality.mode"], size, upload=False)
+            done = job.step(self._budget("final"))
         except ShaderError as e:
+            self._cost_job = None
             self._shader_failed(e)
             return
+        if not done:
+            return
+        self.vp.cost_stats = stats = cost_stats(job.last.cost, job.size)
         self._publish_cost(stats)
         self._cost_key = self._shown_key
+        self._cost_job = None
 
     # --- shaders -----------------------------------------------------------------------------------
     def _poll_shaders(self) -> None:
@@ -566,8 +777,8 @@ class Viewer:
         try:
             modes = {s.params["quality.mode"], "fast"}
             for mode in modes:
-                self.renderer.program(s.params, mode, cost=False)
-            self.renderer.program(s.params, s.params["quality.mode"], cost=True)
+                self.renderer.compile_programs(s.params, mode)
+            self.renderer.compile_programs(s.params, s.params["quality.mode"], cost=True)
             self.vp.compile_all(fresh)
         except ShaderError as e:
             self.renderer.programs = old
@@ -605,6 +816,8 @@ class Viewer:
             size = (w, h)
         size = (int(size[0]), int(size[1]))
         cam = make_camera(s.params, self.scene, size[0] / max(size[1], 1))
+        if self.vp.samples > 0 or self.vp.job is not None:
+            self.vp.snapshot(self._viewport_rect()[2:])   # what the window shows stays, under the redraw
         if view == "shaded":
             img = render_still(self.renderer, s.params, cam, size)
         else:
@@ -621,6 +834,8 @@ class Viewer:
         if size != self.vp.size:
             self.vp.park()
             self.renderer.release_targets()    # a 4K screenshot's targets are ~150 MB: do not keep them
+        self.vp.invalidate()                   # the window's targets were drawn over or released
+        self._cost_job = None
         self._shown_key = None                 # the view draws from the renderer's targets: redraw it
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         Image.fromarray(img).save(path)
@@ -671,8 +886,15 @@ class Viewer:
         emit(grab=path, size=[rect[2], rect[3]], label=self.state.stats.label)
 
     # --- benchmarks (script "bench") ---------------------------------------------------------------
+    def _bench_forces(self) -> bool:
+        """A bench of "final" or "interactive" frames renders a whole new frame every UI frame."""
+        return self._bench is not None and self._bench["quality"] in ("final", "interactive")
+
     def bench_begin(self, quality: str) -> None:
-        self._bench = {"quality": quality, "frames": [], "render": [], "size": None}
+        self._bench = {"quality": quality, "frames": [], "render": [], "fibers": [], "size": None}
+
+    def bench_frames(self) -> int:
+        return len(self._bench["frames"]) if self._bench else 0
 
     def bench_end(self) -> dict[str, Any]:
         b, self._bench = self._bench or {}, None
@@ -681,6 +903,8 @@ class Viewer:
         return {"quality": b.get("quality"), "path": self.state.view.frame_path, "size": b.get("size"),
                 "frames": len(frames), "frame_ms_median": statistics.median(frames) * 1000 if frames else None,
                 "render_ms_median": statistics.median(render) if render else None,
+                # fiber strips inside those frames (refining): the frame less this is UI, display and swap
+                "fibers_ms_median": statistics.median(b["fibers"]) * 1000 if b.get("fibers") else None,
                 "frame_ms": [round(f * 1000, 1) for f in frames]}
 
     # --- errors ------------------------------------------------------------------------------------
@@ -690,6 +914,50 @@ class Viewer:
             self.gl_errors.append(f"{where}: {err}")
             self.state.stats.gl_error = err
             print(f"vfiber view: OpenGL error after {where}: {err}", file=sys.stderr, flush=True)
+
+
+def strand_scene(groom) -> Scene:
+    """The strands of a groom as zero-radius segments between their own vertices: enough for the sketch
+    (display.ViewportRenderer.sketch draws a container's axis when its radius is 0) and to frame the camera
+    while the real containers are built."""
+    points, offsets = groom.packed()
+    inside = np.ones(max(len(points) - 1, 0), bool)
+    inside[offsets[1:-1] - 1] = False                 # no segment from one strand's tip to the next's root
+    a, b = points[:-1][inside], points[1:][inside]
+    origin = 0.5 * (points.min(0) + points.max(0)) if len(points) else np.zeros(3)
+    axis = b - a
+    rows = np.zeros((len(a), 20))
+    rows[:, 0:3], rows[:, 4:7] = a - origin, b - origin
+    rows[:, 8:11], rows[:, 12:15] = axis, axis           # miter normals along the axis
+    rows[:, 16] = 1.0                                     # a frame vector (unused at radius 0)
+    rows[:, 19] = np.repeat(np.arange(len(offsets) - 1), np.diff(offsets) - 1)   # guide: the strand's colour
+    return Scene(rows, origin, "strands", groom.n_strands)
+
+
+def target_is_slow(params) -> bool:
+    """Grooms can take seconds to read and render: they get a console line per stage."""
+    return params["scene.generator"] == "groom"
+
+
+def _build_into(params, box: dict[str, Any]) -> None:
+    """Build the scene of ``params`` into ``box["scene"]``, or the reason it failed into ``box["error"]``
+    (runs in the loading thread: numpy only, no GL). A groom's strands go into ``box["groom"]`` as soon as
+    the file is read, before its containers are built, so the window can sketch them."""
+    try:
+        if params["scene.generator"] == "groom":      # grooms.scene_from_groom, in its two steps
+            from ..scene.grooms import groom_scene, load_groom
+            t0 = time.perf_counter()
+            groom = load_groom(params["scene.groom_file"], up=params["scene.groom_up"],
+                               scale=params["scene.groom_scale"])
+            box["groom"] = groom
+            scene = groom_scene(groom, params, {"load": time.perf_counter() - t0})
+        else:
+            scene = build_scene(params)
+        if scene.n_segments == 0:
+            raise ValueError("the parameters give no containers")
+        box["scene"] = scene
+    except Exception as e:  # whatever a groom file or a generator raises: the viewer says it and stays up
+        box["error"] = f"{type(e).__name__}: {e}"
 
 
 # --- entry point -------------------------------------------------------------------------------------

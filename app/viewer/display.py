@@ -3,16 +3,23 @@
 No imgui here. Two ways to get the renderer's image onto the screen (``ViewSettings.frame_path``):
 
 ``direct``
-    draw into the renderer's own offscreen targets and sample them as textures: no readback, no upload.
-    ``Renderer.render`` always reads back what it draws (``outputs=()`` draws nothing), so this path calls
-    the renderer's drawing steps itself (``program``, ``_set_uniforms``, ``_draw``, ``_target``) and clears
-    the targets as the renderer does (``clear_targets``). It relies on those private names; if
-    they are missing it falls back to ``readback`` by itself and says so.
+    ``Renderer.render(outputs=("draw",))`` draws into the renderer's own offscreen targets
+    (``Renderer.targets(size)``) and the display samples them as textures: no readback, no upload.
 ``readback``
-    ``Renderer.render(outputs=...)`` (the public API the CLI and tests use) then upload the numpy
-    arrays into textures: the honest, simple way, measured against the other.
+    ``Renderer.render(outputs=...)`` then upload the numpy arrays into textures: the honest, simple way,
+    measured against the other.
 
 Either way the display shader sees the same four textures (accumulated colour, ids, geometry, cost).
+
+Slow frames refine across UI frames. A direct sample is a :class:`StripJob`: horizontal strips, top row
+first, each drawn with ``Renderer.render(region=...)`` and sized from a :class:`CostModel` so that one UI
+frame spends about ``budget_s`` on fibers. Until the sample is complete the display shows the picture
+that was on screen before (the *base*, a snapshot; for a new scene a sketch of one line per container)
+with the finished strips over it, so input, menus and the panel keep running whatever one frame costs.
+A draw has a fixed cost whatever its rectangle (every container's vertices), so no strip is made so
+small that the fixed cost is more than MAX_FIXED_SHARE of it: past that, smaller strips mostly add time.
+Strips are sized by :func:`row_weights`, the container area per row, because the hair rows of a groom
+cost 40x its background rows.
 """
 
 from __future__ import annotations
@@ -20,6 +27,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass
+from typing import Callable
 
 import moderngl
 import numpy as np
@@ -27,7 +35,7 @@ import numpy as np
 from ..gl.shaders import ProgramCache
 from ..params import Params
 from ..render.camera import Camera
-from ..render.renderer import Frame, Renderer, clear_targets
+from ..render.renderer import Frame, Renderer
 from ..scene.containers import Scene
 from .state import VIEWS
 
@@ -35,6 +43,11 @@ VIEW_CODE = {name: i for i, name in enumerate(VIEWS)}
 PROXY_SIDES = 16                                   # must match N_SIDES in glsl/viewer/proxy.vert
 PROXY_VERTICES = 4 * PROXY_SIDES + 8
 TIMER_WRAP_S = 4.0                                 # a 32-bit nanosecond timer query wraps at 4.29 s
+FIRST_STRIP_ROWS = 8                               # a strip whose cost nothing predicts yet
+# The most of a strip's time its draw's fixed cost (every container's vertices, whatever the rectangle)
+# may take: smaller strips would keep UI frames shorter but make the whole frame take longer, 1 / share
+# times its fragment work at worst.
+MAX_FIXED_SHARE = 1 / 3
 
 # The heat ramp of app/render/debug_views.py (the CLI's pictures); glsl/viewer/palette.glsl holds the
 # same six stops and a test holds the viewer's debug views against debug_views pixel by pixel.
@@ -71,6 +84,142 @@ class CostStats:
     at: float
 
 
+@dataclass
+class CostModel:
+    """What one draw of a scene costs: a fixed part whatever its rectangle, plus a part per unit of
+    :func:`row_weights` (container fragments, roughly) inside it."""
+
+    fixed_s: float | None = None
+    per_unit_s: float | None = None
+
+    def predict(self, units: float) -> float | None:
+        if self.fixed_s is None or self.per_unit_s is None:
+            return None
+        return self.fixed_s + self.per_unit_s * units
+
+
+def row_weights(scene: Scene, cam: Camera, size: tuple[int, int]) -> np.ndarray:
+    """The expected cost of each image row (GL order, bottom row first): the area of the container proxies
+    that cross it, spread evenly over the rows each one spans, plus a little per pixel. Fibers cost where
+    containers overlap, and harolongo's hair rows cost 40x its background rows, so strips sized by pixels
+    alone overshoot their budget as they reach the hair."""
+    w, h = int(size[0]), int(size[1])
+    seg = scene.segments
+    rel = np.asarray(scene.origin, np.float64) - cam.position
+    m = cam.clip_from_camera(w / max(h, 1))
+    ends = []
+    for cols in (slice(0, 3), slice(4, 7)):
+        p = seg[:, cols] + rel.astype(np.float32)       # float32 is plenty to size strips
+        clip = p @ m[:, :3].T + m[:, 3]
+        ends.append((clip, clip[:, 3]))
+    (ca, wa), (cb, wb) = ends
+    front = (wa > 1e-6) & (wb > 1e-6)
+    safe_a, safe_b = np.where(front, wa, 1.0), np.where(front, wb, 1.0)
+    xa, ya = (ca[:, 0] / safe_a * 0.5 + 0.5) * w, (ca[:, 1] / safe_a * 0.5 + 0.5) * h
+    xb, yb = (cb[:, 0] / safe_b * 0.5 + 0.5) * w, (cb[:, 1] / safe_b * 0.5 + 0.5) * h
+    focal = 0.5 * h / math.tan(math.radians(cam.fov) / 2)
+    r_px = np.maximum(seg[:, 3], seg[:, 7]) * focal / np.minimum(safe_a, safe_b) + 1.0
+    y0 = np.clip(np.minimum(ya, yb) - r_px, 0, h)
+    y1 = np.clip(np.maximum(ya, yb) + r_px, 0, h)
+    area = (np.hypot(xa - xb, ya - yb) + 2 * r_px) * 2 * r_px
+    on = front & (y1 > y0)
+    lo, hi = np.floor(y0[on]).astype(np.int64), np.ceil(y1[on]).astype(np.int64)
+    per_row = area[on] / np.maximum(hi - lo, 1)
+    diff = np.bincount(lo, per_row, h + 1) - np.bincount(hi, per_row, h + 1)
+    weights = np.cumsum(diff[:h])
+    weights += w * 2.0 * (~front).sum()          # a container at the camera covers the whole viewport
+    return np.maximum(weights, 0.0) + 0.05 * w   # and a pixel with no container still costs a little
+
+
+class StripJob:
+    """One frame drawn in horizontal strips across calls to :meth:`step`, top row first.
+
+    ``draw(region)`` draws one strip, (x, y, w, h) in GL pixels, and returns its Frame (or None); the job
+    finishes the GPU after each strip to time it and learns ``model`` from the times. ``weights``: the
+    expected cost per row (:func:`row_weights`; None: every pixel alike). A frame that fits the budget is
+    drawn in one call with ``region=None`` (the whole frame), as without strips.
+    """
+
+    def __init__(self, size: tuple[int, int], draw: Callable[[tuple[int, int, int, int] | None], Frame | None],
+                 model: CostModel, finish: Callable[[], None], weights: np.ndarray | None = None):
+        self.size = (int(size[0]), int(size[1]))
+        self.draw = draw
+        self.model = model
+        self.finish = finish
+        w, h = self.size
+        weights = np.full(h, float(w)) if weights is None else np.asarray(weights, np.float64)
+        self._cum = np.concatenate([[0.0], np.cumsum(weights)])   # rows [a, b) weigh cum[b] - cum[a]
+        self.top = h                     # rows [top, height) are drawn (GL rows, bottom first)
+        self.spent_s = 0.0               # fiber time over all strips so far
+        self.strips = 0
+        self.last: Frame | None = None   # what the last strip's draw returned
+        self._last_units = 0.0           # the last strip's weight
+
+    @property
+    def done(self) -> bool:
+        return self.top <= 0
+
+    @property
+    def fraction(self) -> float:
+        return 1.0 - self.top / max(self.size[1], 1)
+
+    def done_rect(self) -> tuple[int, int, int, int]:
+        """The finished part, (x, y, w, h) in the frame's GL pixels."""
+        return (0, self.top, self.size[0], self.size[1] - self.top)
+
+    def _units(self, rows: int) -> float:
+        return float(self._cum[self.top] - self._cum[self.top - rows])
+
+    def _next_rows(self, budget_s: float) -> int:
+        if math.isinf(budget_s):
+            return self.top
+        m = self.model
+        if m.fixed_s is None or m.per_unit_s is None:
+            return min(FIRST_STRIP_ROWS, self.top)
+        target = max(budget_s, m.fixed_s / MAX_FIXED_SHARE)
+        units = (target - m.fixed_s) / max(m.per_unit_s, 1e-15)
+        if self._last_units > 0:
+            units = min(units, 4.0 * self._last_units)   # the estimate may be off: grow step by step
+        lo = int(np.searchsorted(self._cum, self._cum[self.top] - units, side="left"))
+        return max(1, min(self.top - lo, self.top))
+
+    def step(self, budget_s: float) -> bool:
+        """Draw strips for about ``budget_s`` seconds (at least one). True when the frame is complete."""
+        w = self.size[0]
+        t_step = time.perf_counter()
+        m = self.model
+        if m.fixed_s is None and self.strips and not math.isinf(budget_s):
+            # the fixed cost: a draw of one pixel (of a finished strip: it comes out the same). Measured
+            # after the first strip, so that the first picture is not delayed by it
+            t0 = time.perf_counter()
+            self.draw((0, self.size[1] - 1, 1, 1))
+            self.finish()
+            m.fixed_s = time.perf_counter() - t0
+            self.spent_s += m.fixed_s
+        drawn = 0
+        while not self.done:
+            rows = self._next_rows(budget_s)
+            units = self._units(rows)
+            predicted = m.predict(units)
+            elapsed = time.perf_counter() - t_step
+            if drawn and predicted is not None and elapsed + predicted > budget_s:
+                break
+            whole = rows == self.top == self.size[1]
+            t0 = time.perf_counter()
+            self.last = self.draw(None if whole else (0, self.top - rows, w, rows))
+            self.finish()
+            t = time.perf_counter() - t0
+            self.spent_s += t
+            self.strips += 1
+            drawn += 1
+            self._last_units = units
+            self.top -= rows
+            m.per_unit_s = max(t - (m.fixed_s or 0.0), 0.1 * t) / max(units, 1e-9)
+            if time.perf_counter() - t_step >= budget_s or m.fixed_s is None:
+                break
+        return self.done
+
+
 class ViewportRenderer:
     """Owns the viewer's GL objects; the Renderer owns the fiber program and its targets."""
 
@@ -83,8 +232,12 @@ class ViewportRenderer:
         self.has_ids = False                          # ids/geom of the current size are valid
         self.has_cost = False
         self.cost_stats: CostStats | None = None
-        self.direct_ok = True       # Renderer.render(outputs=("draw",)) leaves the frame in renderer.targets
-        self.fallback_reason: str | None = None if self.direct_ok else "Renderer internals changed"
+        self.job: StripJob | None = None              # the sample (or heat map) being drawn in strips
+        self._job_kind = "sample"                     # "sample": colour, ids, geometry; "cost": the heat map
+        self.models: dict[tuple, CostModel] = {}      # per (what, mode): learnt by the strip jobs
+        self._bases: list[moderngl.Framebuffer] = []  # two snapshots of the screen, drawn into in turn
+        self._base: moderngl.Framebuffer | None = None
+        self._shown_args: tuple | None = None         # what display() last drew (view, p, cam, scene, heat)
         self._accum: moderngl.Framebuffer | None = None
         self._uploads: dict[str, moderngl.Texture] = {}
         self._cost_tex: moderngl.Texture | None = None
@@ -92,7 +245,6 @@ class ViewportRenderer:
         self._proxy_buf: moderngl.Buffer | None = None
         self._proxy_vao: dict[int, moderngl.VertexArray] = {}
         self._ids_from: str = "direct"
-        self._draw_output: bool | None = None        # does Renderer.render know outputs=("draw",)?
         self._latest: moderngl.Texture | None = None  # the texture holding the newest sample
         self._parking: moderngl.Framebuffer | None = None
         self._query = None
@@ -122,15 +274,21 @@ class ViewportRenderer:
     # --- scene -------------------------------------------------------------------------------------
     def set_scene(self, scene: Scene) -> None:
         self.renderer.set_scene(scene)
+        self.models.clear()          # another scene, another cost per draw
+        self.drop_proxies()
+        self.invalidate()
+
+    def drop_proxies(self) -> None:
+        """Forget the proxies' copy of the segments (the next proxies or sketch draw uploads its scene's)."""
         if self._proxy_buf is not None:
             self._proxy_buf.release()
             self._proxy_buf = None
         for vao in self._proxy_vao.values():
             vao.release()
         self._proxy_vao.clear()
-        self.invalidate()
 
     def invalidate(self) -> None:
+        self.job = None
         self.samples = 0
         self._latest = None
         self.has_ids = False
@@ -163,31 +321,78 @@ class ViewportRenderer:
         self.size = size
         self.invalidate()
 
-    # --- one fiber sample --------------------------------------------------------------------------
+    # --- one fiber sample ---------------------------------------------------------------------------
+    def begin_sample(self, p: Params, cam: Camera, mode: str, offset: tuple[float, float], antialias: bool = False,
+                     weights: np.ndarray | None = None) -> StripJob:
+        """Start the next sample (one ray per pixel through ``offset``, or the renderer's own antialiasing
+        with ``antialias``) at ``self.size`` as strips on the direct path; :meth:`refine` draws them."""
+        size = self.size
+        if self.samples == 1 and self._latest is not None:
+            self._before_sample()            # bank the first sample before the second overwrites it
+        self.renderer.compile_programs(p, mode, antialias=antialias)
+
+        def draw(region):
+            return self.renderer.render(p, cam, size, outputs=("draw",), offset=offset, mode=mode,
+                                        antialias=antialias, region=region)
+        model = self.models.setdefault(("draw", mode, antialias), CostModel())
+        if weights is None:
+            weights = row_weights(self.renderer.scene, cam, size)
+        self.job = StripJob(size, draw, model, self.ctx.finish, weights)
+        self._job_kind = "sample"
+        return self.job
+
+    def begin_cost(self, p: Params, cam: Camera, mode: str, weights: np.ndarray | None = None) -> StripJob:
+        """Start the heat map's cost render at ``self.size`` as strips; :meth:`refine` draws them and
+        uploads the result once complete."""
+        size = self.size
+        self.renderer.compile_programs(p, mode, cost=True)
+
+        def draw(region):
+            return self.renderer.render(p, cam, size, outputs=("cost",), mode=mode, region=region)
+        model = self.models.setdefault(("cost", mode), CostModel())
+        if weights is None:
+            weights = row_weights(self.renderer.scene, cam, size)
+        self.job = StripJob(size, draw, model, self.ctx.finish, weights)
+        self._job_kind = "cost"
+        return self.job
+
+    def refine(self, budget_s: float) -> bool:
+        """Draw the running sample for about ``budget_s`` seconds; True when it is complete (and counted)."""
+        job = self.job
+        if job is None:
+            return True
+        if not job.step(budget_s):
+            return False
+        self.job = None
+        if self._job_kind == "cost":
+            self._use_cost(job.last.cost, job.size)
+            self.samples = 1
+            return True
+        color_tex = self.renderer.targets(self.size).color_attachments[0]
+        self._ids_from = "direct"
+        self.has_ids = True
+        self._after_sample(color_tex)
+        return True
+
     def render_sample(self, p: Params, cam: Camera, mode: str, offset: tuple[float, float],
                       path: str, with_ids: bool, antialias: bool = False) -> Timing:
-        """Render one sample (one ray per pixel through ``offset``) at ``self.size`` and add it to the
-        accumulation. ``antialias``: let the renderer antialias the frame itself (quality.supersample in
-        the shader, or quality.msaa) in one pass; that goes through the public readback path."""
-        if path == "direct" and (not self.direct_ok or antialias):
+        """Render one sample at ``self.size`` now, whole, and add it to the accumulation. ``path``:
+        "direct" or "readback" (the module docstring). ``antialias`` with quality.msaa goes through
+        readback: the renderer resolves MSAA only into what it reads back."""
+        if antialias and p["quality.msaa"] > 0:
             path = "readback"
         ctx = self.ctx
         ctx.finish()
         t0 = time.perf_counter()
-        self._before_sample()
         gpu_ns = None
         if path == "direct":
-            try:
-                with self._timed() as q:
-                    self._draw(p, cam, mode, offset)
-                gpu_ns = q.ns
-            except AttributeError as e:  # the renderer changed under us: say so once and carry on
-                self.direct_ok = False
-                self.fallback_reason = f"direct frame path unavailable ({e}); using readback"
-                return self.render_sample(p, cam, mode, offset, "readback", with_ids)
-            color_tex = self.renderer.targets(self.size).color_attachments[0]
-            self._ids_from = "direct"
+            self.begin_sample(p, cam, mode, offset, antialias)
+            with self._timed() as q:
+                self.refine(math.inf)
+            gpu_ns = q.ns
         else:
+            self.job = None
+            self._before_sample()
             outputs = ("color", "ids", "geom") if with_ids else ("color",)
             with self._timed() as q:
                 frame = self.renderer.render(p, cam, self.size, outputs=outputs, offset=offset, mode=mode,
@@ -195,16 +400,12 @@ class ViewportRenderer:
                 color_tex = self._upload_frame(frame)
             gpu_ns = q.ns
             self._ids_from = "readback"
-        self._after_sample(color_tex)
+            self._after_sample(color_tex)
+            self.has_ids = with_ids
         ctx.finish()
         wall = time.perf_counter() - t0
-        self.has_ids = with_ids or path == "direct"
         gpu = gpu_ns / 1e9 if gpu_ns is not None and wall < TIMER_WRAP_S else None
         return Timing(wall, gpu)
-
-    def _draw(self, p: Params, cam: Camera, mode: str, offset) -> None:
-        """Draw into the renderer's own targets without reading back (``Renderer.render(outputs=("draw",))``)."""
-        self.renderer.render(p, cam, self.size, outputs=("draw",), offset=offset, mode=mode, antialias=False)
 
     def _timed(self):
         query = self._query
@@ -287,7 +488,7 @@ class ViewportRenderer:
             self._accumulate(color)
 
     def _shown_color(self) -> moderngl.Texture | None:
-        if self.samples == 1:
+        if self.samples == 1 and (self.job is None or self._accum is None):
             return self._latest
         return self._accum.color_attachments[0] if self._accum is not None else None
 
@@ -296,46 +497,136 @@ class ViewportRenderer:
                     upload: bool) -> CostStats:
         """A cost render (fiber tests per pixel) through the public API; ``upload`` for the heat map."""
         frame = self.renderer.render(p, cam, size, outputs=("cost",), mode=mode)
-        cost = frame.cost
-        covered = cost[..., 2] > 0
-        tests = cost[..., 0][covered]
-        stats = CostStats(float(tests.mean()) if tests.size else None,
-                          float(np.percentile(tests, 99)) if tests.size else 0.0,
-                          int(covered.sum()), size, time.perf_counter())
         if upload:
-            if self._cost_tex is None or self._cost_tex.size != size:
-                if self._cost_tex is not None:
-                    self._cost_tex.release()
-                self._cost_tex = self.ctx.texture(size, 4, dtype="f4")
-            self._cost_tex.write(np.ascontiguousarray(cost[::-1]).tobytes())
-            self.has_cost = True
-        self.cost_stats = stats
-        return stats
+            return self._use_cost(frame.cost, size)
+        self.cost_stats = cost_stats(frame.cost, size)
+        return self.cost_stats
+
+    def _use_cost(self, cost: np.ndarray, size: tuple[int, int]) -> CostStats:
+        """A cost read-back as the heat map's texture and the overlay's figures."""
+        if self._cost_tex is None or self._cost_tex.size != size:
+            if self._cost_tex is not None:
+                self._cost_tex.release()
+            self._cost_tex = self.ctx.texture(size, 4, dtype="f4")
+        self._cost_tex.write(np.ascontiguousarray(cost[::-1]).tobytes())
+        self.has_cost = True
+        self.cost_stats = cost_stats(cost, size)
+        return self.cost_stats
 
     # --- display -----------------------------------------------------------------------------------
     def display(self, target: moderngl.Framebuffer, rect: tuple[int, int, int, int], view: str,
                 p: Params, cam: Camera | None, scene: Scene | None, heat_max: float) -> None:
-        """Draw the current render into ``rect`` (x, y, w, h in the target's pixels, GL origin)."""
+        """Draw the current render into ``rect`` (x, y, w, h in the target's pixels, GL origin). While the
+        first sample is still being drawn in strips: the base picture with the finished strips over it."""
         ctx = self.ctx
+        self._shown_args = (view, p, cam, scene, heat_max)
         target.use()
         ctx.viewport = rect
         ctx.scissor = rect
         ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
-        code = VIEW_CODE[view]
-        ready = self.has_cost if view == "heat map" else self.samples > 0
-        if not ready:
-            bg = np.asarray(p["look.background"]) ** (1 / 2.2)
-            target.clear(*bg, 1.0, viewport=rect)
+        job = self.job
+        if job is not None and self.samples == 0 and view != "heat map":
+            self._draw_base(target, rect, p)
+            x, y, w, h = job.done_rect()
+            if h > 0:       # the finished strips, mapped from render pixels to the viewport's
+                sy = rect[3] / max(job.size[1], 1)
+                y0 = rect[1] + int(math.floor(y * sy))
+                ctx.scissor = (rect[0], y0, rect[2], rect[1] + rect[3] - y0)
+                self._draw_view(rect, view, p, cam, scene, heat_max,
+                                self.renderer.targets(job.size).color_attachments[0], 1)
             ctx.scissor = None
             return
-        prog = self._prog("viewer/display.frag", defines={"VIEW": code})
+        ready = self.has_cost if view == "heat map" else self.samples > 0
+        if not ready:
+            self._draw_base(target, rect, p)
+            ctx.scissor = None
+            return
+        self._draw_view(rect, view, p, cam, scene, heat_max, self._shown_color(), self.samples)
+        ctx.scissor = None
+
+    def _draw_base(self, target: moderngl.Framebuffer, rect, p: Params) -> None:
+        """The picture shown before the one being drawn (stretched if the viewport changed since), or the
+        background when there is none."""
+        if self._base is None:
+            bg = np.asarray(p["look.background"]) ** (1 / 2.2)
+            target.clear(*bg, 1.0, viewport=rect)
+            return
+        prog = self._prog("viewer/display.frag", defines={"VIEW": VIEW_CODE["shaded"]})
+        tex = self._base.color_attachments[0]
+        tex.filter = (moderngl.LINEAR, moderngl.LINEAR)
+        tex.use(0)
+        values = {"uAccum": 0, "uSamples": 1.0, "uBackgroundSrgb": (0.0, 0.0, 0.0)}
+        for name, value in values.items():
+            if name in prog:
+                prog[name].value = value
+        self._fullscreen(prog)
+
+    def snapshot(self, size: tuple[int, int]) -> None:
+        """Keep what display() last showed (``size``: the viewport's) as the base under the next strips."""
+        if self._shown_args is None:
+            return
+        fbo = self._next_base(size)
+        self.display(fbo, (0, 0) + fbo.size, *self._shown_args)   # reads the old base, writes the other
+        self._base = fbo
+
+    def sketch(self, size: tuple[int, int], p: Params, cam: Camera, scene: Scene) -> None:
+        """A quick first picture of a scene, as the base under its first strips: one line per container,
+        along its side from root to tip (the side lines of the proxies view, two vertices a container),
+        over the background."""
+        fbo = self._next_base(size)
+        ctx = self.ctx
+        fbo.use()
+        ctx.viewport = (0, 0) + fbo.size
+        ctx.scissor = None
+        ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
+        bg = np.asarray(p["look.background"]) ** (1 / 2.2)
+        fbo.clear(*bg, 1.0)
+        prog, vao = self._proxy_program(scene)
+        prog["uSceneFromCamera"].value = tuple(scene.origin - cam.position)
+        prog["uClipFromCamera"].write(cam.clip_from_camera(fbo.size[0] / max(fbo.size[1], 1)).T.copy().tobytes())
+        if "uAlpha" in prog:
+            prog["uAlpha"].value = 1.0
+        vao.render(moderngl.LINES, vertices=2, first=4 * PROXY_SIDES, instances=scene.n_segments)
+        self._base = fbo
+
+    def _next_base(self, size: tuple[int, int]) -> moderngl.Framebuffer:
+        """The base framebuffer not shown now (display reads the other), at ``size``."""
+        size = (max(int(size[0]), 1), max(int(size[1]), 1))
+        if not self._bases or self._bases[0].size != size:
+            self._release_bases()       # (a resized viewport starts from the background)
+            self._bases = [self.ctx.framebuffer([self.ctx.texture(size, 4, dtype="f1")]) for _ in range(2)]
+        return self._bases[1] if self._base is self._bases[0] else self._bases[0]
+
+    def _release_bases(self) -> None:
+        self.park()
+        for fbo in self._bases:
+            fbo.color_attachments[0].release()
+            fbo.release()
+        self._bases, self._base = [], None
+
+    def buffer_bytes(self) -> int:
+        """Bytes of the viewer's own per-pixel buffers: accumulation, uploads, cost, the two bases."""
+        total = 0
+        texs = list(self._uploads.values()) + [f.color_attachments[0] for f in self._bases]
+        if self._accum is not None:
+            texs.append(self._accum.color_attachments[0])
+        if self._cost_tex is not None:
+            texs.append(self._cost_tex)
+        for t in texs:
+            total += t.width * t.height * t.components * {"f1": 1, "u4": 4, "f4": 4}.get(t.dtype, 4)
+        return total
+
+    def _draw_view(self, rect, view: str, p: Params, cam: Camera | None, scene: Scene | None, heat_max: float,
+                   shown: moderngl.Texture | None, samples: int) -> None:
+        ctx = self.ctx
+        prog = self._prog("viewer/display.frag", defines={"VIEW": VIEW_CODE[view]})
         dummy = self._dummies()
-        shown = self._shown_color() or dummy["f4"]
+        shown = shown or dummy["f4"]
         # 1:1 (the final frame at render_scale 1): nearest is exact and cheaper than bilinear on llvmpipe
         one_to_one = tuple(self.size) == (rect[2], rect[3])
         shown.filter = (moderngl.NEAREST, moderngl.NEAREST) if one_to_one else (moderngl.LINEAR, moderngl.LINEAR)
         shown.use(0)
-        if self._ids_from == "direct" and self.direct_ok and self.samples > 0:
+        if self._ids_from == "direct" and (self.samples > 0 or self.job is not None):
             fbo = self.renderer.targets(self.size)
             ids, geom = fbo.color_attachments[1], fbo.color_attachments[2]
             ids.filter = (moderngl.NEAREST, moderngl.NEAREST)   # integer textures sample only NEAREST
@@ -347,7 +638,7 @@ class ViewportRenderer:
         (self._cost_tex if self._cost_tex is not None else dummy["f4"]).use(3)
         bg = tuple(float(x) for x in np.round(np.clip(p["look.background"], 0, 1) ** (1 / 2.2) * 255) / 255)
         values = {"uAccum": 0, "uIds": 1, "uGeom": 2, "uCost": 3,
-                  "uSamples": float(max(self.samples, 1)), "uBackgroundSrgb": bg,
+                  "uSamples": float(max(samples, 1)), "uBackgroundSrgb": bg,
                   "uRings": int(p["fibers.rings"]), "uHeatMax": float(heat_max), "uDim": 0.4,
                   "uDepthRange": self.depth_range(cam, scene)}
         for name, value in values.items():
@@ -356,7 +647,6 @@ class ViewportRenderer:
         self._fullscreen(prog)
         if view == "proxies" and scene is not None and cam is not None:
             self._draw_proxies(scene, cam, rect)
-        ctx.scissor = None
 
     @staticmethod
     def depth_range(cam: Camera | None, scene: Scene | None) -> tuple[float, float]:
@@ -367,7 +657,7 @@ class ViewportRenderer:
         d = float(np.linalg.norm(centre - cam.position))
         return (max(d - radius, 0.0), d + radius)
 
-    def _draw_proxies(self, scene: Scene, cam: Camera, rect) -> None:
+    def _proxy_program(self, scene: Scene) -> tuple[moderngl.Program, moderngl.VertexArray]:
         ctx = self.ctx
         prog = self._prog("viewer/proxy.frag", "viewer/proxy.vert")
         if self._proxy_buf is None:
@@ -376,6 +666,11 @@ class ViewportRenderer:
         if vao is None:
             vao = self._proxy_vao[id(prog)] = ctx.vertex_array(prog, [
                 (self._proxy_buf, "4f 4f 4f 4f 4f/i", "in_a", "in_b", "in_c", "in_d", "in_e")])
+        return prog, vao
+
+    def _draw_proxies(self, scene: Scene, cam: Camera, rect) -> None:
+        ctx = self.ctx
+        prog, vao = self._proxy_program(scene)
         w, h = rect[2], rect[3]
         prog["uSceneFromCamera"].value = tuple(scene.origin - cam.position)
         prog["uClipFromCamera"].write(cam.clip_from_camera(w / max(h, 1)).T.copy().tobytes())
@@ -403,6 +698,7 @@ class ViewportRenderer:
 
     def release(self) -> None:
         self.resize((0, 0))
+        self._release_bases()
         if self._proxy_buf is not None:
             self._proxy_buf.release()
             self._proxy_buf = None
@@ -410,6 +706,15 @@ class ViewportRenderer:
             vao.release()
         self._proxy_vao.clear()
         self._empty_vao.clear()
+
+
+def cost_stats(cost: np.ndarray, size: tuple[int, int]) -> CostStats:
+    """Fiber tests per container-covered pixel of a cost read-back (mean and 99th percentile)."""
+    covered = cost[..., 2] > 0
+    tests = cost[..., 0][covered]
+    return CostStats(float(tests.mean()) if tests.size else None,
+                     float(np.percentile(tests, 99)) if tests.size else 0.0,
+                     int(covered.sum()), size, time.perf_counter())
 
 
 def render_still(renderer: Renderer, p: Params, cam: Camera, size: tuple[int, int]) -> np.ndarray:

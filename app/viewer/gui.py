@@ -513,7 +513,7 @@ def _stats_overlay(state: AppState, layout: Layout) -> None:
         imgui.text(f"containers {s.guides:,} guides, {s.segments:,} segments")
         ratio = s.explicit_bytes / s.scene_gpu_bytes if s.scene_gpu_bytes else 0.0
         imgui.text(f"scene on GPU {human_bytes(s.scene_gpu_bytes)}   explicit {human_bytes(s.explicit_bytes)}"
-                   f" ({ratio:,.0f}x)")
+                   f" ({ratio:,.0f}x)" + frame_bytes_text(s))
         if s.tests_per_pixel is not None:
             imgui.text(f"fiber tests / covered pixel {s.tests_per_pixel:.1f} (p99 {s.tests_p99:.0f}; "
                        f"{s.cost_size[0]}x{s.cost_size[1]}, {s.cost_age_s:.0f} s ago)")
@@ -765,3 +765,24 @@ def _screenshot_dialog(state: AppState, scratch: dict[str, Any], center, flags) 
     if imgui.button("Cancel") or imgui.is_key_pressed(imgui.Key.escape):
         imgui.close_current_popup()
     imgui.end_popup()
+
+
+# --- issue 12: progress of a frame that refines in strips, per-pixel buffer bytes -------------------
+
+def refine_overlay(state: AppState, layout: Layout) -> None:
+    """"refining n%" in the viewport's lower right corner while a slow frame is drawn in strips, and
+    "loading ..." while a scene is built."""
+    s = state.stats
+    loading = state.status.startswith("loading ")
+    if s.refining is None and not loading:
+        return
+    if _overlay_begin("##refining", layout.x + layout.w - 10, layout.y + layout.h - 10, (1.0, 1.0)):
+        text = state.status if loading else f"refining {min(s.refining, 0.999) * 100:.0f}%"
+        imgui.text_colored(AMBER, text)
+    imgui.end()
+
+
+def frame_bytes_text(s) -> str:
+    """The per-pixel buffers next to the scene's bytes (the renderer's count where it keeps one)."""
+    renderer = f"{human_bytes(s.frame_gpu_bytes)} + " if s.frame_gpu_bytes is not None else ""
+    return f"   per-pixel {renderer}{human_bytes(s.viewer_gpu_bytes)} viewer"

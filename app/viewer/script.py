@@ -13,7 +13,7 @@ A script is a TOML or JSON file (by extension; JSON may also be a bare list of s
       { wait = 3 },                          # frames shown on screen
       { wait_seconds = 0.5 },
       { wait_final = true },                 # until the full-quality frame (all samples) is shown
-      { wait_for = "shader_error", timeout = 30 },    # until a report field is set ("not:x": cleared)
+      { wait_for = "shader_error", timeout = 30 },    # until a report or stats field is set ("not:x": cleared)
       { screenshot = "out.png", size = [640, 360], view = "shaded" },      # offscreen, no UI
       { grab = "window.png" },               # the window's render area as displayed (no UI)
       { grab = "ui.png", ui = true, final = true },   # the whole window, once the final frame is in
@@ -33,7 +33,9 @@ A script is a TOML or JSON file (by extension; JSON may also be a bare list of s
                                              # (add size = [1920, 1080] to render them offscreen instead)
       { sweep = "look.exposure", values = [0, 0.5, 1], frames = 1 },       # change -> frame latency
       { bench = 10, quality = "final" },     # force 10 renders, print median times ("interactive";
-                                             # "ui": frames that draw the UI and the last image only)
+                                             # "ui": frames that draw the UI and the last image only;
+                                             # "refining": the next 10 UI frames that draw strips of a
+                                             # slow frame, refining as it would without a bench)
       { print = "last_error" },              # one JSON line on stdout: a report field, or "report"
       { report = "state.json" },             # the whole report as a file
       { echo = "text" },
@@ -164,8 +166,8 @@ class ScriptRunner:
 
     def tick(self, viewer: "Viewer") -> None:
         """Called at the start of a frame. Runs steps until one needs frames to pass."""
-        if self.exit_code is not None:
-            return
+        if self.exit_code is not None or viewer.loading():
+            return           # a scene being built: its steps would act on the one before
         if self._wait_frames > 0:
             self._wait_frames -= 1
             return
@@ -183,7 +185,9 @@ class ScriptRunner:
         if self._wait_for is not None:
             name, deadline = self._wait_for
             negate = name.startswith("not:")
-            value = bool(viewer.state.report().get(name.removeprefix("not:")))
+            report = viewer.state.report()
+            field_name = name.removeprefix("not:")
+            value = bool(report[field_name] if field_name in report else report["stats"].get(field_name))
             if value != negate:
                 self._wait_for = None
             elif time.perf_counter() > deadline:
@@ -253,8 +257,10 @@ class ScriptRunner:
             return True
         elif action == "wait_for":
             field_name = str(arg).removeprefix("not:")
-            if field_name not in viewer.state.report():
-                raise ScriptError(f"wait_for = {arg!r}: a report field ({', '.join(viewer.state.report())})")
+            report = viewer.state.report()
+            if field_name not in report and field_name not in report["stats"]:
+                raise ScriptError(f"wait_for = {arg!r}: a report or stats field ({', '.join(report)}, "
+                                  f"{', '.join(report['stats'])})")
             self._wait_for = (str(arg), time.perf_counter() + float(step.get("timeout", 60)))
             return True
         elif action == "screenshot":
@@ -313,10 +319,12 @@ class ScriptRunner:
             return True
         elif action == "bench":
             quality = step.get("quality", "final")
-            if quality not in ("final", "interactive", "ui"):
-                raise ScriptError("bench quality = 'final' | 'interactive' | 'ui' (frames without a fiber render)")
+            if quality not in ("final", "interactive", "ui", "refining"):
+                raise ScriptError("bench quality = 'final' | 'interactive' | 'ui' (frames without a fiber render)"
+                                  " | 'refining' (UI frames while a slow frame is drawn in strips)")
             viewer.bench_begin(quality)
-            self._loop = {"kind": "bench", "left": int(arg), "quality": quality}
+            self._loop = {"kind": "bench", "left": int(arg), "quality": quality,
+                          "until": time.perf_counter() + float(step.get("timeout", 120))}
             return True
         elif action == "print":
             report = state.report()
@@ -394,6 +402,11 @@ class ScriptRunner:
             state.edit(loop["key"], loop["values"].pop(0))
             loop["wait"] = loop["frames"]
         elif loop["kind"] == "bench":
+            if loop["quality"] == "refining":   # counts frames that refined; gives up after the timeout
+                if viewer.bench_frames() >= loop["left"] or time.perf_counter() > loop["until"]:
+                    emit(bench=viewer.bench_end())
+                    self._loop = None
+                return
             if loop["left"] <= 0:
                 emit(bench=viewer.bench_end())
                 self._loop = None

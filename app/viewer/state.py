@@ -48,6 +48,7 @@ class ViewSettings:
     interactive_mode: str = "fast"       # "fast" (thesis order, first hit) or "final mode" (quality.mode)
     auto_budget_ms: float = 120.0        # "auto" scale aims the interactive render at this time
     refine_delay: float = 0.3            # seconds of stillness before the final frame
+    refine_budget_ms: float = 30.0       # fiber time per UI frame while a slow frame refines in strips
     frame_path: str = "direct"           # "direct": draw from the renderer's texture; "readback": via numpy
     heat_max: float = 0.0                # heat-map top of scale, fiber tests; 0 = automatic (99th percentile)
     turntable: bool = False
@@ -82,6 +83,9 @@ class Stats:
     guides: int = 0
     segments: int = 0
     scene_gpu_bytes: int = 0
+    frame_gpu_bytes: int | None = None   # the renderer's per-pixel buffers (None: it does not count them)
+    viewer_gpu_bytes: int = 0            # the viewer's own: accumulation, uploads, base pictures
+    refining: float | None = None        # fraction of the final picture drawn while it refines in strips
     explicit_bytes: int = 0              # explicit storage of the same fibers (see EXPLICIT_FORMULA)
     tests_per_pixel: float | None = None  # mean fiber tests per container-covered pixel (cost render)
     tests_p99: float = 0.0
@@ -443,7 +447,8 @@ class AppState:
                 "fibers_41": s.fibers_41, "fibers_exact": s.fibers_exact, "guides": s.guides,
                 "segments": s.segments, "scene_gpu_bytes": s.scene_gpu_bytes, "explicit_bytes": s.explicit_bytes,
                 "tests_per_pixel": s.tests_per_pixel, "edit_latency_ms": s.edit_latency_ms,
-                "gl_renderer": s.gl_renderer, "gl_error": s.gl_error,
+                "gl_renderer": s.gl_renderer, "gl_error": s.gl_error, "refining": s.refining,
+                "frame_gpu_bytes": s.frame_gpu_bytes, "viewer_gpu_bytes": s.viewer_gpu_bytes,
             },
         }
 
