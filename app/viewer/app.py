@@ -713,12 +713,13 @@ def initial_state(target: str | None) -> AppState:
 
 
 def run_viewer(target: str | None, *, script: str | None = None, size=(1280, 720),
-               glsl_root: str | None = None) -> int:
+               glsl_root: str | None = None, overrides: dict[str, Any] | None = None) -> int:
     """Open the viewer on a preset (name or path) or a groom file; returns the process exit code.
 
     ``script``: a TOML/JSON script (see app/viewer/script.py) run one step per frame; the window stays
     open after it unless it ends with ``quit``. Exit codes: 0 fine, 1 no OpenGL window, 2 a bad target
     or script. ``glsl_root``: shaders from another folder (a copy to experiment in; hot reload follows it).
+    ``overrides``: ``--set`` values on top of the target (unsaved changes of the opened document).
     """
     runner = None
     if script is not None:
@@ -732,6 +733,8 @@ def run_viewer(target: str | None, *, script: str | None = None, size=(1280, 720
             size = parsed.size
     try:
         state = initial_state(target)
+        if overrides:
+            state.edit_many(overrides, undoable=False)
     except ParamError as e:  # PresetError is a ParamError: the message names file, line, key, value
         print(f"vfiber view: {e}", file=sys.stderr)
         return 2
