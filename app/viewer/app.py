@@ -43,6 +43,7 @@ from ..render.camera import Camera
 from ..render.renderer import Renderer
 from ..scene.containers import Scene
 from ..scene.generators import build_scene
+from .compare import CompareView
 from .display import ViewportRenderer, auto_scale, render_still, supersample_offsets
 from .gui import Layout, gui
 from .navigate import CameraController, Input, make_camera
@@ -75,6 +76,7 @@ class Viewer:
         self.programs = ProgramCache(glsl_root)
         self.renderer = Renderer(self.ctx, self.programs)
         self.vp = ViewportRenderer(self.ctx, self.renderer, self.programs)
+        self.compare = CompareView(self.ctx, self.programs)
         self.controller = CameraController()
         self.scene: Scene | None = None
         self._scene_key: tuple | None = None
@@ -145,6 +147,7 @@ class Viewer:
         imgui.backends.glfw_shutdown()
         imgui.destroy_context()
         self.vp.release()
+        self.compare.release()
         self.glfw.destroy_window(self.window)
         self.glfw.terminate()
 
@@ -220,6 +223,8 @@ class Viewer:
         self.ctx.clear(0.1, 0.1, 0.11, 1.0)
         self.vp.display(self.ctx.screen, rect, self.state.view.view, self.state.params, self._camera(rect),
                         self.scene, self._heat_max())
+        if self.state.view.view == "shaded":
+            self.compare.draw(self, rect)
         grab_now = self._grab is not None and (not self._grab[1] or self.final_shown())
         if grab_now and not self._grab[2]:
             self._save_grab(rect)
@@ -338,6 +343,8 @@ class Viewer:
                     s.show_error(f"{args['path']}: could not save the screenshot: {e}")
             elif command == "export_osl":
                 self.export_osl(args["path"])
+            elif command == "turntable":
+                self.render_turntable(**args)
             elif command == "ask_save_as":
                 s.commands.insert(0, (command, args))  # the gui opens the dialog next frame
                 break
@@ -624,6 +631,29 @@ class Viewer:
         self._shown_key = None                 # the view draws from the renderer's targets: redraw it
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         Image.fromarray(img).save(path)
+
+    def render_turntable(self, path: str, frames: int = 36, size=(640, 360), alpha: bool = False) -> bool:
+        """File > Render turntable: the current look orbited offscreen into ``path`` (app/turntable.py)."""
+        from ..turntable import render_turntable
+
+        s = self.state
+        if self.scene is None:
+            s.show_error("no scene to render" + (f": {s.scene_error}" if s.scene_error else ""))
+            return False
+        try:
+            result = render_turntable(s.params, path, frames=int(frames), size=tuple(size), alpha=alpha,
+                                      renderer=self.renderer, scene=self.scene)
+        except Exception as e:  # a full disk, a folder that cannot be made: say it, stay up
+            s.show_error(f"{path}: turntable failed: {e}")
+            return False
+        finally:
+            self.vp.park()
+            self.renderer.release_targets()
+            self._shown_key = None
+        video = f", video {result.video}" if result.video else ""
+        s.status = f"turntable: {len(result.frames)} frames in {path}{video}"
+        emit(turntable=str(path), frames=len(result.frames), video=str(result.video or ""))
+        return True
 
     def resize_window(self, width: int, height: int) -> None:
         """Resize as a person dragging the window edge would (scripts and tests)."""
