@@ -162,8 +162,10 @@ Shaded trace_and_shade(Segment seg, vec3 rd, bool shade) {
     float roughness = clamp(uRoughness * (1.0 + uRoughnessVariation * 2.0 * rough), 0.02, 1.0);
     // fibers deep in the container see less of the sky
     float occlusion = mix(1.0, exp(-3.0 * (1.0 - length(hit.c))), uShadowDensity);
+    ContainerShadow cs = ContainerShadow(transpose(worldFromLocal), hit.c,
+                                         SHADOW_MODE == 0 ? 0.0 : uShadowDensity * uFiberDensity);
     vec3 radiance = shade_lights(T, N, V, color, roughness, occlusion,
-                                 light_transmittance(seg, ur, hit, uLightDir));
+                                 light_transmittance(seg, ur, hit, uLightDir), cs);
     o.color = tone_map(radiance);
     return o;
 }
