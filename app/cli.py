@@ -280,7 +280,8 @@ def cmd_turntable(args) -> int:
         print(f"frame {n}/{total}: {path.name} (about {left:.0f} s left)", file=sys.stderr, flush=True)
 
     result = render_turntable(p, out, frames=args.frames, size=parse_size(args.size), alpha=args.alpha,
-                              degrees=args.degrees, video=not args.no_video, progress=progress)
+                              degrees=args.degrees, video=not args.no_video, light=args.light,
+                              progress=progress)
     video = f"; video {result.video}" if result.video else f"; no video ({result.video_note})"
     print(f"wrote {len(result.frames)} frames to {out}/ from {label}{video}, {time.perf_counter() - t0:.1f} s")
     return 0
@@ -403,6 +404,7 @@ def make_parser() -> argparse.ArgumentParser:
     t.add_argument("--mode", choices=("fast", "exact", "brute"))
     t.add_argument("--alpha", action="store_true", help="RGBA frames, coverage as alpha")
     t.add_argument("--no-video", action="store_true", help="frames only, even where ffmpeg is installed")
+    t.add_argument("--light", action="store_true", help="turn the lights (light.rig_rotation), not the camera")
     t.set_defaults(func=cmd_turntable)
 
     i = sub.add_parser("info", help="containers, fibers and GPU bytes of a preset or groom")

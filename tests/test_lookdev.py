@@ -142,6 +142,17 @@ def test_turntable_writes_frames_and_calls_ffmpeg_when_present(tmp_path, monkeyp
     assert "frame 3/3" in capsys.readouterr().err
 
 
+def test_light_turntable_turns_the_lights_not_the_camera(tmp_path):
+    out = tmp_path / "lt"
+    assert main(["turntable", "default", "--light", "-o", str(out), "--frames", "2", "--size", "64x36",
+                 "--set", "look.self_shadow=off"]) == 0
+    a, b = (np.asarray(Image.open(out / f"frame_000{i}.png")).astype(int) for i in (0, 1))
+    bg = np.round(np.asarray(Params()["look.background"]) ** (1 / 2.2) * 255)
+    hair_a, hair_b = np.abs(a - bg).max(-1) > 8, np.abs(b - bg).max(-1) > 8
+    assert (hair_a == hair_b).mean() > 0.99                       # same silhouette: the camera stayed
+    assert np.abs(a - b)[hair_a].max() > 20                        # different light on it
+
+
 def test_turntable_without_ffmpeg_says_so(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("PATH", str(tmp_path))
     assert main(["turntable", "default", "-o", str(tmp_path / "tt"), "--frames", "2", "--size", "32x18"]) == 0

@@ -539,7 +539,9 @@ def test_ab_compare_turntable_menu_and_the_panel_for_a_groom(tmp_path):
         {"grab": str(t / "aonly.png"), "final": True},
         {"print": "pinned"},
         {"render_turntable": str(t / "tt"), "frames": 3, "size": [80, 48], "alpha": True},
-        {"wait": 2},
+        {"wait": 1},
+        {"print": "status"},                                   # one frame per displayed frame: counting
+        {"wait": 6},
         {"print": "status"},
         {"print": "shown_controls"},
     ]
@@ -562,7 +564,8 @@ def test_ab_compare_turntable_menu_and_the_panel_for_a_groom(tmp_path):
     assert len(frames) == 3
     from PIL import Image
     assert Image.open(frames[0]).mode == "RGBA"
-    assert "turntable: 3 frames" in got["status"][0]
+    assert got["status"][0].startswith("turntable: frame ") and "/3" in got["status"][0]
+    assert "turntable: 3 frames" in got["status"][1]
     shown = got["shown_controls"]
     assert "scene.count" in shown[0] and "light.rim_color" in shown[0] and "look.melanin" not in shown[0]
     if groom.exists():

@@ -77,6 +77,7 @@ class Viewer:
         self.renderer = Renderer(self.ctx, self.programs)
         self.vp = ViewportRenderer(self.ctx, self.renderer, self.programs)
         self.compare = CompareView(self.ctx, self.programs)
+        self._turntable: dict[str, Any] | None = None   # File > Render turntable in progress
         self.controller = CameraController()
         self.scene: Scene | None = None
         self._scene_key: tuple | None = None
@@ -174,7 +175,7 @@ class Viewer:
         s = self.state
         if self.glfw.get_window_attrib(self.window, self.glfw.ICONIFIED):
             return SHADER_POLL_S      # minimized: nothing to show, nothing to render
-        if self._extra_frames > 0 or s.view.turntable or self._bench or self._grab:
+        if self._extra_frames > 0 or s.view.turntable or self._bench or self._grab or self._turntable:
             return 0.0
         if runner is not None and not runner.done:
             return 0.0
@@ -215,6 +216,8 @@ class Viewer:
         self._layout = gui(self.state)
         self._navigate(dt)
         self._commands()
+        if self._turntable is not None:
+            self._turntable_step()
         self._update_scene()
         rendered = self.render()
         rect = self._viewport_rect()
@@ -633,27 +636,37 @@ class Viewer:
         Image.fromarray(img).save(path)
 
     def render_turntable(self, path: str, frames: int = 36, size=(640, 360), alpha: bool = False) -> bool:
-        """File > Render turntable: the current look orbited offscreen into ``path`` (app/turntable.py)."""
-        from ..turntable import render_turntable
+        """File > Render turntable: the current look orbited offscreen into ``path``, one frame per
+        displayed frame (app/turntable.py), the status bar counting."""
+        from ..turntable import iter_turntable
 
         s = self.state
         if self.scene is None:
             s.show_error("no scene to render" + (f": {s.scene_error}" if s.scene_error else ""))
             return False
-        try:
-            result = render_turntable(s.params, path, frames=int(frames), size=tuple(size), alpha=alpha,
-                                      renderer=self.renderer, scene=self.scene)
-        except Exception as e:  # a full disk, a folder that cannot be made: say it, stay up
-            s.show_error(f"{path}: turntable failed: {e}")
-            return False
-        finally:
-            self.vp.park()
-            self.renderer.release_targets()
-            self._shown_key = None
-        video = f", video {result.video}" if result.video else ""
-        s.status = f"turntable: {len(result.frames)} frames in {path}{video}"
-        emit(turntable=str(path), frames=len(result.frames), video=str(result.video or ""))
+        self._turntable = {"steps": iter_turntable(s.params, path, self.renderer, self.scene, frames=int(frames),
+                                                    size=tuple(size), alpha=alpha),
+                           "path": str(path), "frames": int(frames), "done": 0}
         return True
+
+    def _turntable_step(self) -> None:
+        job = self._turntable
+        s = self.state
+        try:
+            job["done"], _ = next(job["steps"])
+            s.status = f"turntable: frame {job['done']}/{job['frames']} in {job['path']}"
+            return
+        except StopIteration:
+            from ..turntable import encode_video
+            video, note = encode_video(Path(job["path"]), job["frames"])
+            s.status = f"turntable: {job['done']} frames in {job['path']}" + (f", video {video}" if video else "")
+            emit(turntable=job["path"], frames=job["done"], video=str(video or ""))
+        except Exception as e:  # a full disk, a folder that cannot be made: say it, stay up
+            s.show_error(f"{job['path']}: turntable failed: {e}")
+        self._turntable = None
+        self.vp.park()
+        self.renderer.release_targets()
+        self._shown_key = None
 
     def resize_window(self, width: int, height: int) -> None:
         """Resize as a person dragging the window edge would (scripts and tests)."""
