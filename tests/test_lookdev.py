@@ -3,6 +3,7 @@ lights and environment light, the panel's vocabulary, a clean install. Viewer se
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import stat
@@ -161,7 +162,7 @@ def test_turntable_without_ffmpeg_says_so(tmp_path, monkeypatch, capsys):
 
 
 def test_contact_sheet_has_a_labelled_tile_per_variant(tmp_path):
-    from app.contact_sheet import label_box, labels_of, tile_boxes
+    from app.contact_sheet import labels_of, layout_of
 
     out = tmp_path / "sheet.png"
     variants = ["look.model=marschner", "look.color=0.9,0.2,0.1 look.roughness=0.15", "curly-1"]
@@ -172,12 +173,12 @@ def test_contact_sheet_has_a_labelled_tile_per_variant(tmp_path):
     assert labels_of(out) == variants
     sheet = np.asarray(Image.open(out).convert("RGB")).astype(int)
     tiles = []
-    for box in tile_boxes(3, (120, 70)):
-        x, y, w, h = box
+    boxes, label_height = layout_of(out)
+    assert len(boxes) == 3 and label_height >= 26             # the long label wraps onto a second line
+    for x, y, w, h in boxes:
         tiles.append(sheet[y:y + h, x:x + w])
-        lx, ly, lw, lh = label_box(box)
-        strip = sheet[ly:ly + lh, lx:lx + lw]
-        assert (strip.max(axis=2) > 150).mean() > 0.02, "no label text under a tile"
+        strip = sheet[y + h:y + h + label_height, x:x + w]
+        assert (strip.max(axis=2) > 150).sum() > 60, "no label text under a tile"
     for i in range(3):
         for j in range(i + 1, 3):
             assert np.abs(tiles[i] - tiles[j]).max() > 30
@@ -206,6 +207,19 @@ def test_lights_as_plain_data_and_the_rim_follows_the_camera():
     env = look.environment(p.replace(**{"light.environment_rotation": 30.0, "light.rig_rotation": 10.0}))
     assert env.generated and env.source == "studio" and env.rotation == 40.0
     assert look.lights(Params())[1:] == []                           # the defaults add no light
+
+
+def test_light_rig_for_an_exporter(tmp_path):
+    from app.render import look
+    from app.render.environment import read_hdr
+
+    p = Params({"light.rim_intensity": 1.0, "light.environment": "sky", "light.environment_rotation": 20.0})
+    rig = look.light_rig(p, str(tmp_path))
+    json.dumps(rig)                                              # plain data
+    assert [x["kind"] for x in rig["lights"]] == ["key", "rim"]   # lamps only: the image goes as itself
+    env = rig["environment"]
+    assert env["rotation_degrees"] == 20.0 and env["generated"]
+    assert read_hdr(Path(env["image"]).read_bytes()).shape[2] == 3
 
 
 def test_median_cut_keeps_the_energy_and_finds_the_sun():

@@ -100,9 +100,11 @@ def environment(p: Params) -> Environment | None:
                        p["light.environment_intensity"])
 
 
-def lights(p: Params, camera_azimuth: float | None = None) -> list[Light]:
+def lights(p: Params, camera_azimuth: float | None = None, *, environment_pieces: bool = True) -> list[Light]:
     """Every light of the look, key first. The rim follows the camera (``camera_azimuth``, default the
-    parameters' ``camera.azimuth``): it stays behind the hair however the view turns."""
+    parameters' ``camera.azimuth``): it stays behind the hair however the view turns. Without
+    ``environment_pieces`` the environment's median-cut lights are left out (an exporter that gives the
+    renderer the image itself, ``environment(p)``, wants the lamps only)."""
     from ..params import ParamError
     from .environment import EnvironmentError_, environment_lights, rotate_z
 
@@ -118,7 +120,7 @@ def lights(p: Params, camera_azimuth: float | None = None) -> list[Light]:
         c = tuple(p["light.rim_intensity"] * x for x in p["light.rim_color"])
         out.append(Light("rim", _direction(cam_az + 180.0 + p["light.rim_azimuth"], p["light.rim_elevation"]), c))
     env = environment(p)
-    if env is not None and env.intensity > 0:
+    if env is not None and env.intensity > 0 and environment_pieces:
         try:
             pieces = environment_lights(env.source)
         except EnvironmentError_ as e:
@@ -151,3 +153,28 @@ def apply_lighting(prog, p: Params, camera_position=None, scene_centre=None) -> 
         prog["uLightDirs"].write(dirs.tobytes())
     if "uLightColors" in prog:
         prog["uLightColors"].write(colors.tobytes())
+
+
+def light_rig(p: Params, folder: str | None = None) -> dict:
+    """The look's lights for an exporter (Blender's export-blend), as JSON-ready data: sun lamps with a
+    direction toward the light and a linear RGB strength, and the environment as an equirectangular image
+    (``folder``: where a generated map is written as .hdr, so the exporter has a file to load) with its
+    rotation about +Z and strength. Same conventions as Blender's: +Z up, the image's centre column
+    looking along +X."""
+    from pathlib import Path
+
+    from .environment import environment_image, write_hdr
+
+    rig: dict = {"lights": [{"kind": x.kind, "direction": list(x.direction), "color": list(x.color)}
+                            for x in lights(p, environment_pieces=False)],
+                 "environment": None, "ambient": p["look.ambient"]}
+    env = environment(p)
+    if env is not None:
+        path = env.source
+        if env.generated and folder is not None:
+            target = Path(folder) / f"vfiber-{env.source}.hdr"
+            write_hdr(target, environment_image(env.source))
+            path = str(target)
+        rig["environment"] = {"image": path, "generated": env.generated, "rotation_degrees": env.rotation,
+                              "strength": env.intensity}
+    return rig
