@@ -571,3 +571,16 @@ def test_ab_compare_turntable_menu_and_the_panel_for_a_groom(tmp_path):
     if groom.exists():
         assert "scene.groom_cluster" in shown[1]
         assert not {"scene.count", "scene.radius", "scene.length"} & set(shown[1])
+
+
+@needs_xvfb
+def test_view_takes_set_on_top_of_its_target(tmp_path):
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps({"size": [320, 200], "steps": [{"print": "params"}, {"quit": 0}]}))
+    cmd = [XVFB, "-a", "-s", "-screen 0 1280x1024x24", sys.executable, "-m", "app.cli", "view", "default",
+           "--set", "fibers.rings=3", "--set", "look.color=0.8,0.5,0.3", "--script", str(path)]
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    proc = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    params = next(json.loads(x[len(PREFIX):])["params"] for x in proc.stdout.splitlines() if x.startswith(PREFIX))
+    assert params["fibers.rings"] == 3 and params["look.color"] == [0.8, 0.5, 0.3]
