@@ -76,7 +76,7 @@ class Viewer:
         self.programs = ProgramCache(glsl_root)
         self.renderer = Renderer(self.ctx, self.programs)
         self.vp = ViewportRenderer(self.ctx, self.renderer, self.programs)
-        self.compare = CompareView(self.ctx, self.programs)
+        self.compare = CompareView(self.ctx)
         self._turntable: dict[str, Any] | None = None   # File > Render turntable in progress
         self.controller = CameraController()
         self.scene: Scene | None = None

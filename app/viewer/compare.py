@@ -29,9 +29,8 @@ def compared_params(pinned: Params, live: Params) -> Params:
 
 
 class CompareView:
-    def __init__(self, ctx, programs):
+    def __init__(self, ctx):
         self.ctx = ctx
-        self.programs = programs
         self.renderer = None
         self.scene = None
         self._scene_key: tuple | None = None
@@ -55,7 +54,8 @@ class CompareView:
         pa = compared_params(s.pinned, s.params)
         scene_key = tuple((k, v) for k, v in pa.values.items() if k.startswith("scene."))
         if self.renderer is None:
-            self.renderer = Renderer(self.ctx, self.programs)
+            self.renderer = Renderer(self.ctx, viewer.programs)
+        self.renderer.programs = viewer.programs     # a shader hot reload swaps the viewer's cache
         if scene_key != self._scene_key:
             live_key = tuple((k, v) for k, v in s.params.values.items() if k.startswith("scene."))
             # the same hair as on screen: share the viewer's scene (its geometry), else build A's own
@@ -79,7 +79,7 @@ class CompareView:
         if mode == "off" or s.pinned is None or viewer.scene is None:
             return
         x, y, w, h = rect
-        key = (tuple(compared_params(s.pinned, s.params).values.items()), (w, h))
+        key = (tuple(compared_params(s.pinned, s.params).values.items()), (w, h), id(viewer.programs))
         if key != self._key and (viewer.final_shown() or self.texture is None):
             self._render_a(viewer, (w, h))
             self._key = key
@@ -88,7 +88,7 @@ class CompareView:
         split = w if mode == "A only" else int(round(w * min(max(s.view.compare_split, 0.0), 1.0)))
         if split <= 0:
             return
-        prog = self.programs.get(self.ctx, "stages/fullscreen.vert", "viewer/compare.frag")
+        prog = viewer.programs.get(self.ctx, "stages/fullscreen.vert", "viewer/compare.frag")
         ctx = self.ctx
         ctx.screen.use()
         ctx.disable(0x0B71 | 0x0BE2)      # DEPTH_TEST | BLEND: A replaces B's pixels
