@@ -163,6 +163,18 @@ def _scene():
     return build_scene(Params())
 
 
+def test_the_turntable_can_turn_the_lights_instead_of_the_camera():
+    s, scene, nav = AppState(), _scene(), CameraController()
+    s.view.turntable, s.view.turntable_speed = True, 30.0
+    nav.update(s, scene, Input(dt=0.1), (640, 360))
+    assert s.params["camera.azimuth"] == pytest.approx(Params()["camera.azimuth"] + 3.0)
+    s.view.turntable_turns = "lights"
+    az = s.params["camera.azimuth"]
+    for _ in range(2):
+        nav.update(s, scene, Input(dt=0.1), (640, 360))
+    assert s.params["camera.azimuth"] == az and s.params["light.rig_rotation"] == pytest.approx(6.0)
+
+
 def test_orbit_pan_zoom_and_frame_all():
     s, scene, nav = AppState(), _scene(), CameraController()
     vp = (1280, 720)

@@ -21,8 +21,8 @@ from ..presets import bundled_names, presets_dir
 from ..units import human_bytes
 from .display import HEAT_STOPS
 from . import vocabulary as words
-from .state import (EXPLICIT_FORMULA, FRAME_PATHS, INTERACTIVE_MODES, INTERACTIVE_SCALES, VIEWS,
-                    AppState, is_groom_path)
+from .state import (EXPLICIT_FORMULA, FRAME_PATHS, INTERACTIVE_MODES, INTERACTIVE_SCALES, TURNTABLE_TURNS,
+                    VIEWS, AppState, is_groom_path)
 
 # Panel sections, labels and which controls apply: app/viewer/vocabulary.py (no imgui there).
 SECTIONS = words.SECTIONS
@@ -201,6 +201,9 @@ def _menu_bar(state: AppState, scratch: dict[str, Any]) -> float:
         if imgui.menu_item_simple("Reset camera", "Home"):
             state.reset_camera()
         _, state.view.turntable = imgui.menu_item("Turntable", "T", state.view.turntable)
+        lights = state.view.turntable_turns == "lights"
+        if imgui.menu_item_simple("Turntable turns the lights", "", lights):
+            state.view.turntable_turns = "camera" if lights else "lights"
         imgui.end_menu()
     if imgui.begin_menu("Compare"):
         if imgui.menu_item_simple("Pin current look as A", "P"):
@@ -518,6 +521,9 @@ def _debug_panel(state: AppState) -> None:
     imgui.same_line()
     imgui.set_next_item_width(120)
     _, v.turntable_speed = imgui.slider_float("deg/s", v.turntable_speed, -180.0, 180.0, "%.0f")
+    _, i = imgui.combo("turntable turns", TURNTABLE_TURNS.index(v.turntable_turns), list(TURNTABLE_TURNS))
+    v.turntable_turns = TURNTABLE_TURNS[i]
+    imgui.set_item_tooltip("lights: the light rig (rotate all lights) turns under a still camera")
 
 
 # --- overlays ----------------------------------------------------------------------------------------------

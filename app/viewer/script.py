@@ -127,13 +127,13 @@ def set_view_setting(view: Any, name: str, value: Any) -> None:
     """One ViewSettings field, checked against its type and, where there is one, its list of choices."""
     from dataclasses import fields as dc_fields
     from .compare import MODES as COMPARE_MODES
-    from .state import FRAME_PATHS, INTERACTIVE_MODES, INTERACTIVE_SCALES
+    from .state import FRAME_PATHS, INTERACTIVE_MODES, INTERACTIVE_SCALES, TURNTABLE_TURNS
 
     known = {f.name: f for f in dc_fields(view)}
     if name not in known:
         raise ScriptError(f"viewer setting {name!r} does not exist; settings: {', '.join(known)}")
     choices = {"view": VIEWS, "interactive_scale": INTERACTIVE_SCALES, "interactive_mode": INTERACTIVE_MODES,
-               "frame_path": FRAME_PATHS, "compare": COMPARE_MODES}.get(name)
+               "frame_path": FRAME_PATHS, "compare": COMPARE_MODES, "turntable_turns": TURNTABLE_TURNS}.get(name)
     current = getattr(view, name)
     if choices is not None and value not in choices:
         raise ScriptError(f"viewer {name} = {value!r}: one of {', '.join(choices)}")

@@ -31,6 +31,7 @@ VIEWS: tuple[str, ...] = ("shaded", "fiber ids", "rings", "normals", "depth", "h
 INTERACTIVE_SCALES: tuple[str, ...] = ("25%", "50%", "75%", "100%", "auto")
 INTERACTIVE_MODES: tuple[str, ...] = ("fast", "final mode")
 FRAME_PATHS: tuple[str, ...] = ("direct", "readback")
+TURNTABLE_TURNS: tuple[str, ...] = ("camera", "lights")
 GROOM_SUFFIXES: tuple[str, ...] = (".hair", ".data", ".tfx", ".ply")
 UNDO_DEPTH = 200
 
@@ -52,6 +53,7 @@ class ViewSettings:
     heat_max: float = 0.0                # heat-map top of scale, fiber tests; 0 = automatic (99th percentile)
     turntable: bool = False
     turntable_speed: float = 30.0        # degrees per second
+    turntable_turns: str = "camera"      # one of TURNTABLE_TURNS: what the turntable turns
     show_panel: bool = True
     show_stats: bool = True
     show_help: bool = False
