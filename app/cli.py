@@ -160,7 +160,7 @@ def write_output(path: Path, frame, kind: str, p: Params, alpha: bool = False) -
             header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
             OpenEXR.File(header, channels).write(str(tmp))
         elif suffix in (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp"):
-            img = output_image(frame, kind, p, alpha and suffix not in (".jpg", ".jpeg", ".bmp"))
+            img = output_image(frame, kind, p, alpha)
             Image.fromarray(img).save(tmp, format=Image.registered_extensions()[suffix])
         else:
             raise UsageError(f"{path}: unknown image type {suffix!r}; use .png, .exr or .npy")
@@ -193,6 +193,10 @@ def cmd_render(args) -> int:
     kind = args.output
     if args.alpha and kind != "shaded":
         raise UsageError(f"--alpha writes the shaded picture's coverage; --output {kind} has no alpha")
+    if args.alpha and out.suffix.lower() in (".jpg", ".jpeg", ".bmp"):
+        raise UsageError(f"{out}: {out.suffix} has no alpha channel; use .png, .tif or .exr with --alpha")
+    if args.alpha and args.method == "explicit":
+        raise UsageError("--alpha needs the virtual method's coverage; the explicit baseline has none")
     t0 = time.perf_counter()
     scene = build_scene_for(p)
     wanted = {"shaded": ("color",), "id": ("ids",), "ring": ("ids",), "depth": ("geom",),

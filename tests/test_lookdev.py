@@ -89,6 +89,18 @@ def test_alpha_png_is_the_coverage_and_composites_back_to_the_rgb_render(tmp_pat
     assert np.abs(over - np.asarray(Image.open(rgb)).astype(np.float64)).max() <= 2.0
 
 
+@pytest.mark.parametrize("argv,words", [
+    (["-o", "x.jpg"], ["no alpha channel"]),
+    (["--output", "depth", "-o", "x.png"], ["no alpha"]),
+    (["--method", "explicit", "-o", "x.png"], ["explicit"]),
+])
+def test_alpha_refuses_what_cannot_carry_it(tmp_path, monkeypatch, capsys, argv, words):
+    monkeypatch.chdir(tmp_path)
+    assert main(["render", "default", "--alpha", "--size", "16x16", *argv]) == 2
+    line = _err_line(capsys)
+    assert all(w in line for w in words) and not list(tmp_path.iterdir())
+
+
 def test_alpha_exr_is_premultiplied_rgba(tmp_path):
     import OpenEXR
 
