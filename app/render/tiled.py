@@ -37,16 +37,19 @@ class TileCamera(Camera):
         return sx, sy, (2 * x0 + w) / W - 1, (2 * y0 + h) / H - 1
 
     def basis(self):
+        """Scaled so that the renderer's rays (forward + ndc.x * right * tan(fov/2) * w / h + ndc.y * up *
+        tan(fov/2), tile ndc) are the full view's: right and up shrink by h / H, forward points at the
+        tile's centre."""
         right, up, forward = self.full.basis()
-        x0, y0, w, h, W, H = self.window
-        sx, sy, cx, cy = self._crop()
+        _, _, _, h, W, H = self.window
+        _, _, cx, cy = self._crop()
         th = math.tan(math.radians(self.full.fov) / 2)
-        # the renderer scales right by tan(fov/2) * w / h and up by tan(fov/2): undo that for the tile
         k = h / H
         return right * k, up * k, forward + cx * th * (W / H) * right + cy * th * up
 
     def clip_from_camera(self, aspect: float) -> np.ndarray:
-        x0, y0, w, h, W, H = self.window
+        """The full view's projection followed by the crop of its NDC square to the tile's."""
+        _, _, _, _, W, H = self.window
         sx, sy, cx, cy = self._crop()
         crop = np.array([[1 / sx, 0, 0, -cx / sx], [0, 1 / sy, 0, -cy / sy], [0, 0, 1, 0], [0, 0, 0, 1]])
         return (crop @ self.full.clip_from_camera(W / H).astype(np.float64)).astype(np.float32)
