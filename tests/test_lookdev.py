@@ -267,6 +267,21 @@ def test_hdr_file_round_trip_and_rle(tmp_path):
     assert len(environment_lights(str(path))) == 8
 
 
+def test_an_exr_environment_lights_as_the_same_map_generated(tmp_path):
+    import OpenEXR
+
+    from app.render.environment import generated
+
+    exr = tmp_path / "studio.exr"
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    OpenEXR.File(header, {"RGB": generated("studio")}).write(str(exr))
+    a, b = tmp_path / "gen.png", tmp_path / "file.png"
+    assert main(["render", "default", "--set", "light.environment=studio", "--size", "64x36", "-o", str(a)]) == 0
+    assert main(["render", "default", "--set", "light.environment=file", "--set", f"light.environment_file={exr}",
+                 "--size", "64x36", "-o", str(b)]) == 0
+    assert np.array_equal(np.asarray(Image.open(a)), np.asarray(Image.open(b)))
+
+
 def test_a_missing_environment_file_is_one_line(tmp_path, capsys):
     assert main(["render", "default", "--set", "light.environment=file", "--set",
                  f"light.environment_file={tmp_path / 'nope.exr'}", "--size", "16x16",

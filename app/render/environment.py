@@ -196,10 +196,21 @@ def median_cut(img: np.ndarray, count: int = ENV_LIGHTS) -> list[DirectionalLigh
     return lights
 
 
-@functools.lru_cache(maxsize=8)
 def environment_lights(source: str, count: int = ENV_LIGHTS) -> tuple[DirectionalLight, ...]:
-    """The median-cut lights of a generated map's name or an image path (cached: a slider drag on the
-    rotation or intensity does not reload the file)."""
+    """The median-cut lights of a generated map's name or an image path (cached by the file's size and
+    time: a slider drag on the rotation or intensity does not reload it; saving a new image does)."""
+    stamp = None
+    if source not in GENERATED:
+        try:
+            st = Path(source).stat()
+            stamp = (st.st_mtime_ns, st.st_size)
+        except OSError:
+            pass                       # read_image says what is wrong with it
+    return _environment_lights(source, count, stamp)
+
+
+@functools.lru_cache(maxsize=8)
+def _environment_lights(source: str, count: int, stamp) -> tuple[DirectionalLight, ...]:
     img = generated(source) if source in GENERATED else read_image(source)
     return tuple(median_cut(img, count))
 

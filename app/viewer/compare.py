@@ -81,8 +81,13 @@ class CompareView:
         x, y, w, h = rect
         key = (tuple(compared_params(s.pinned, s.params).values.items()), (w, h), id(viewer.programs))
         if key != self._key and (viewer.final_shown() or self.texture is None):
-            self._render_a(viewer, (w, h))
-            self._key = key
+            self._key = key           # tried once per change, whether it works or not
+            try:
+                self._render_a(viewer, (w, h))
+            except Exception as e:  # A's groom or HDRI may fail where B's did not: say so, show B alone
+                s.status = f"error: the pinned look A does not render: {e}"
+                self.release()
+                return
         if self.texture is None:
             return
         split = w if mode == "A only" else int(round(w * min(max(s.view.compare_split, 0.0), 1.0)))
