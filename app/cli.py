@@ -223,6 +223,7 @@ def cmd_render(args) -> int:
             renderer.set_scene(scene)
             if size[0] * size[1] * p["quality.render_scale"] ** 2 > TILED_ABOVE_PIXELS:
                 frame = render_tiled(renderer, p, cam, size, outputs=wanted, progress=print_progress(sys.stderr))
+                print(f"writing {out} ...", file=sys.stderr, flush=True)   # compressing 64 Mpix takes a while
             else:
                 frame = renderer.render_quality(p, cam, size, outputs=wanted)
             what = f"{scene.n_segments} container segments in {renderer.scene_gpu_bytes} GPU bytes"
