@@ -1,4 +1,4 @@
-"""The ``vfiber`` command line: render, info, doctor, presets, view, bench, export-osl.
+"""The ``vfiber`` command line: render, turntable, info, doctor, presets, view, bench, export-osl.
 
 Every error a person can cause (a bad preset, a bad ``--set``, a broken groom file, no GL driver, a shader
 that does not compile) ends in one line on stderr and exit status 2, never a traceback. ``VFIBER_DEBUG=1``
@@ -8,6 +8,7 @@ shows the traceback for developers.
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 import time
@@ -15,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .params import ParamError, Params, parse_assignment
+from .params import BY_KEY, ParamError, Params, parse_assignment
 
 GROOM_SUFFIXES = (".hair", ".data", ".tfx", ".ply")
 OUTPUTS = ("shaded", "id", "depth", "normal", "ring", "cost")
@@ -47,14 +48,31 @@ def resolve_params(target: str | None, assignments: list[str]) -> tuple[Params, 
             values = dict(preset.params.values)
             label = str(preset.path or name)
     for text in assignments:
-        key, value = parse_assignment(text)
+        key, value = parse_cli_assignment(text)
         values[key] = value
     try:
         return Params(values), label
     except ParamError as e:
         if assignments and e.source is None:
-            raise ParamError(e.bare, key=e.key, source="--set") from None
+            raise ParamError(e.bare + _tuple_hint(e.key), key=e.key, source="--set") from None
         raise
+
+
+def parse_cli_assignment(text: str) -> tuple[str, object]:
+    """``--set key=value``; a colour or point may also be written without brackets: look.color=0.8,0.5,0.3."""
+    key, value = parse_assignment(text)
+    if isinstance(value, str) and "," in value and BY_KEY[key].kind is tuple:
+        try:
+            value = [float(v) for v in value.split(",")]
+        except ValueError:
+            pass
+    return key, value
+
+
+def _tuple_hint(key: str | None) -> str:
+    if key in BY_KEY and BY_KEY[key].kind is tuple:
+        return f" (write it as {key}=0.8,0.5,0.3 or {key}=[0.8,0.5,0.3])"
+    return ""
 
 
 def parse_budget(text: str) -> int:
@@ -76,11 +94,23 @@ def parse_size(text: str) -> tuple[int, int]:
 # --------------------------------------------------------------------------------------------------
 # output files
 # --------------------------------------------------------------------------------------------------
-def output_image(frame, kind: str, p: Params) -> np.ndarray:
+def unpremultiplied_rgba(frame, p: Params) -> np.ndarray:
+    """(H, W, 4) uint8: the fibers' own colour with their coverage as alpha (background taken out), so the
+    picture composites over any plate. The renderer hands back colour over the background and the coverage;
+    where coverage is 0 the colour is black and fully transparent."""
+    bg = np.round(np.clip(np.asarray(p["look.background"]), 0, 1) ** (1 / 2.2) * 255)
+    a = frame.coverage.astype(np.float64)[..., None]
+    premultiplied = frame.color.astype(np.float64) - (1.0 - a) * bg
+    straight = np.where(a > 0, premultiplied / np.maximum(a, 1e-6), 0.0)
+    rgb = np.clip(np.round(straight), 0, 255)
+    return np.concatenate([rgb, np.round(a * 255)], axis=-1).astype(np.uint8)
+
+
+def output_image(frame, kind: str, p: Params, alpha: bool = False) -> np.ndarray:
     from .render import debug_views as dv
 
     if kind == "shaded":
-        return frame.color
+        return unpremultiplied_rgba(frame, p) if alpha else frame.color
     if kind == "id":
         return dv.fiber_id_image(frame.ids)
     if kind == "ring":
@@ -92,9 +122,14 @@ def output_image(frame, kind: str, p: Params) -> np.ndarray:
     return dv.cost_image(frame.cost)
 
 
-def output_data(frame, kind: str) -> np.ndarray:
-    """Raw values for .npy/.exr: ids as uint32, the rest float32."""
+def output_data(frame, kind: str, p: Params | None = None, alpha: bool = False) -> np.ndarray:
+    """Raw values for .npy/.exr: ids as uint32, the rest float32. Shaded with ``alpha``: premultiplied
+    RGBA (the compositors' convention for EXR), coverage as alpha."""
     if kind == "shaded":
+        if alpha:
+            rgba = unpremultiplied_rgba(frame, p).astype(np.float32) / 255.0
+            rgba[..., :3] *= rgba[..., 3:4]
+            return rgba
         return frame.color.astype(np.float32) / 255.0
     if kind in ("id", "ring"):
         return frame.ids if kind == "id" else frame.ids[..., 1:2]
@@ -105,7 +140,7 @@ def output_data(frame, kind: str) -> np.ndarray:
     return frame.cost
 
 
-def write_output(path: Path, frame, kind: str, p: Params) -> None:
+def write_output(path: Path, frame, kind: str, p: Params, alpha: bool = False) -> None:
     from PIL import Image
 
     from .atomic import atomic_path
@@ -114,18 +149,19 @@ def write_output(path: Path, frame, kind: str, p: Params) -> None:
     with atomic_path(path) as tmp:
         if suffix == ".npy":
             with open(tmp, "wb") as f:
-                np.save(f, output_data(frame, kind))
+                np.save(f, output_data(frame, kind, p, alpha))
         elif suffix == ".exr":
             import OpenEXR
 
-            data = output_data(frame, kind)
+            data = output_data(frame, kind, p, alpha)
             if data.dtype != np.uint32:
                 data = data.astype(np.float32)
             channels = {1: {"Y": data[..., 0]}, 3: {"RGB": data}, 4: {"RGBA": data}}[data.shape[-1]]
             header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
             OpenEXR.File(header, channels).write(str(tmp))
         elif suffix in (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp"):
-            Image.fromarray(output_image(frame, kind, p)).save(tmp, format=Image.registered_extensions()[suffix])
+            img = output_image(frame, kind, p, alpha)
+            Image.fromarray(img).save(tmp, format=Image.registered_extensions()[suffix])
         else:
             raise UsageError(f"{path}: unknown image type {suffix!r}; use .png, .exr or .npy")
 
@@ -143,7 +179,10 @@ def cmd_render(args) -> int:
     from .gl.context import create_headless
     from .render.camera import Camera
     from .render.renderer import Renderer
+    from .render.tiled import TILED_ABOVE_PIXELS, print_progress, render_tiled
 
+    if args.variant:
+        return cmd_contact_sheet(args)
     p, label = resolve_params(args.target or args.preset, args.set)
     if args.mode:
         p = p.replace(**{"quality.mode": args.mode})
@@ -152,33 +191,104 @@ def cmd_render(args) -> int:
     if not out.parent.exists():
         raise UsageError(f"{out}: folder {out.parent} does not exist")
     kind = args.output
+    if args.alpha and kind != "shaded":
+        raise UsageError(f"--alpha writes the shaded picture's coverage; --output {kind} has no alpha")
+    if args.alpha and out.suffix.lower() in (".jpg", ".jpeg", ".bmp"):
+        raise UsageError(f"{out}: {out.suffix} has no alpha channel; use .png, .tif or .exr with --alpha")
+    if args.alpha and args.method == "explicit":
+        raise UsageError("--alpha needs the virtual method's coverage; the explicit baseline has none")
     t0 = time.perf_counter()
     scene = build_scene_for(p)
     wanted = {"shaded": ("color",), "id": ("ids",), "ring": ("ids",), "depth": ("geom",),
               "normal": ("geom",), "cost": ("cost",)}[kind]
     with create_headless() as gl:
-        cam = Camera.from_params(p, scene)
+        cam = Camera.from_params(p, scene, size[0] / size[1])
         if args.method == "explicit":
             # the conventional baseline: every fiber stored in GPU buffers and rasterized
-            from .render.explicit import ExplicitRenderer
+            from .render.explicit import ExplicitBudgetError, ExplicitRenderer
 
             if kind == "cost":
                 raise UsageError("--output cost counts fiber tests of the virtual method; the explicit method "
                                  "rasterizes and has none")
             explicit = (ExplicitRenderer(gl.ctx, budget_bytes=args.explicit_budget) if args.explicit_budget
                         else ExplicitRenderer(gl.ctx))
-            stats = explicit.set_scene(scene, p)
+            try:
+                stats = explicit.set_scene(scene, p)
+            except ExplicitBudgetError as e:   # name the option a command-line user has, not the API
+                raise UsageError(budget_message(e)) from None
             frame = explicit.render(p, cam, size, outputs=wanted)
             what = f"{stats.fibers} explicit fibers in {explicit.gpu_bytes} GPU bytes"
         else:
             renderer = Renderer(gl.ctx)
             renderer.set_scene(scene)
-            frame = renderer.render_quality(p, cam, size, outputs=wanted)
+            if size[0] * size[1] * p["quality.render_scale"] ** 2 > TILED_ABOVE_PIXELS:
+                frame = render_tiled(renderer, p, cam, size, outputs=wanted, progress=print_progress(sys.stderr))
+                print(f"writing {out} ...", file=sys.stderr, flush=True)   # compressing 64 Mpix takes a while
+            else:
+                frame = renderer.render_quality(p, cam, size, outputs=wanted)
             what = f"{scene.n_segments} container segments in {renderer.scene_gpu_bytes} GPU bytes"
-        write_output(out, frame, kind, p)
+        write_output(out, frame, kind, p, alpha=args.alpha)
         seconds = time.perf_counter() - t0
-        print(f"wrote {out} ({kind}, {size[0]}x{size[1]}, {args.method} method, {p['quality.mode']} mode) from "
-              f"{label}: {what}, {seconds:.2f} s on {gl.renderer}")
+        alpha = ", alpha = coverage" if args.alpha else ""
+        print(f"wrote {out} ({kind}{alpha}, {size[0]}x{size[1]}, {args.method} method, {p['quality.mode']} mode) "
+              f"from {label}: {what}, {seconds:.2f} s on {gl.renderer}")
+    return 0
+
+
+def budget_message(e) -> str:
+    """The explicit method's refusal in command-line words: the option to raise, with a value that fits."""
+    from .units import human_bytes
+
+    fits = 2 ** math.ceil(math.log2(max(e.needed, 1)))
+    text = str(e).replace("(ExplicitRenderer(ctx, budget_bytes=...))",
+                          f"(--explicit-budget {human_bytes(fits).replace(' ', '').replace('.0', '')})")
+    return text
+
+
+def cmd_contact_sheet(args) -> int:
+    """``vfiber render TARGET --variant ... -o sheet.png``: one labelled tile per look."""
+    from .contact_sheet import parse_variants, render_contact_sheet
+
+    if args.output != "shaded" or args.method != "virtual":
+        raise UsageError("--variant makes a contact sheet of shaded virtual renders; leave out --output/--method")
+    out = Path(args.output_file)
+    if not out.parent.exists():
+        raise UsageError(f"{out}: folder {out.parent} does not exist")
+    base_target = args.target or args.preset
+    looks = parse_variants(base_target, args.set, args.variant, resolve_params, args.mode)
+    t0 = time.perf_counter()
+    sheet = render_contact_sheet(looks, parse_size(args.size), out,
+                                 progress=lambda n, total, label: print(f"rendering {n}/{total}: {label}",
+                                                                        file=sys.stderr, flush=True))
+    print(f"wrote {out} (contact sheet of {len(looks)} looks, {sheet.size[0]}x{sheet.size[1]}), "
+          f"{time.perf_counter() - t0:.2f} s")
+    return 0
+
+
+def cmd_turntable(args) -> int:
+    from .turntable import render_turntable
+
+    p, label = resolve_params(args.target or args.preset, args.set)
+    if args.mode:
+        p = p.replace(**{"quality.mode": args.mode})
+    if args.frames < 1 or args.frames > 3600:
+        raise UsageError(f"--frames {args.frames}: between 1 and 3600")
+    out = Path(args.output_dir)
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"{out} is a file; -o names a folder for the frames")
+    if not out.parent.exists():
+        raise UsageError(f"{out}: folder {out.parent} does not exist")
+    t0 = time.perf_counter()
+
+    def progress(n: int, total: int, path: Path) -> None:
+        left = (time.perf_counter() - t0) / n * (total - n)
+        print(f"frame {n}/{total}: {path.name} (about {left:.0f} s left)", file=sys.stderr, flush=True)
+
+    result = render_turntable(p, out, frames=args.frames, size=parse_size(args.size), alpha=args.alpha,
+                              degrees=args.degrees, video=not args.no_video, light=args.light,
+                              progress=progress)
+    video = f"; video {result.video}" if result.video else f"; no video ({result.video_note})"
+    print(f"wrote {len(result.frames)} frames to {out}/ from {label}{video}, {time.perf_counter() - t0:.1f} s")
     return 0
 
 
@@ -194,7 +304,8 @@ def cmd_info(args) -> int:
     print(f"source           {label}")
     print(f"guides           {scene.n_guides}")
     print(f"container segs   {scene.n_segments}")
-    print(f"bounding box     {np.round(lo, 4).tolist()} .. {np.round(hi, 4).tolist()}")
+    # the containers' box (radii included); a groom also prints its strands' own box as "groom bbox"
+    print(f"container box    {np.round(lo, 4).tolist()} .. {np.round(hi, 4).tolist()} (radii included)")
     print(f"rings            {lay.rings} (fibers per ring, outer to inner: "
           f"{', '.join(str(int(n)) for n in lay.n[:8])}{' ...' if lay.rings > 8 else ''})")
     print(f"fibers/container {lay.fibers_per_container}")
@@ -228,7 +339,12 @@ def cmd_presets(args) -> int:
 def cmd_view(args) -> int:
     from .viewer.app import run_viewer
 
-    return run_viewer(args.target, script=args.script, size=parse_size(args.size))
+    target = args.target or args.preset
+    overrides = {}
+    if args.set:
+        resolve_params(target, args.set)     # a bad --set fails here, in one line, before a window opens
+        overrides = dict(parse_cli_assignment(text) for text in args.set)
+    return run_viewer(target, script=args.script, size=parse_size(args.size), overrides=overrides)
 
 
 def cmd_bench(args) -> int:
@@ -243,8 +359,19 @@ def cmd_export_osl(args) -> int:
     return export_main(args.rest)
 
 
+def version() -> str:
+    from importlib.metadata import PackageNotFoundError
+    from importlib.metadata import version as dist_version
+
+    try:
+        return dist_version("vfiber")
+    except PackageNotFoundError:   # run from a checkout that was never installed
+        return "unknown (not installed)"
+
+
 def make_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="vfiber", description="Hair and fur lookdev with virtual fibers.")
+    ap.add_argument("--version", action="version", version=f"vfiber {version()}")
     sub = ap.add_subparsers(dest="command", required=True)
 
     def scene_args(sp):
@@ -264,7 +391,26 @@ def make_parser() -> argparse.ArgumentParser:
                    help="virtual fibers in containers (default) or the conventional explicit strands")
     r.add_argument("--explicit-budget", type=parse_budget, default=None, metavar="BYTES",
                    help="GPU bytes the explicit method may use before it refuses (default 1GiB)")
+    r.add_argument("--alpha", action="store_true",
+                   help="shaded PNG/TIFF as RGBA with the fibers' coverage as alpha (EXR/NPY: premultiplied)")
+    r.add_argument("--variant", action="append", default=[], metavar="LOOK",
+                   help="write a labelled contact sheet, one tile per --variant: a preset or groom and/or "
+                        "key=value changes on top of TARGET, e.g. --variant curly-1 --variant "
+                        "'look.model=marschner look.roughness=0.2' (repeatable)")
     r.set_defaults(func=cmd_render)
+
+    t = sub.add_parser("turntable", help="render the camera orbiting the hair: a PNG sequence (and a video "
+                       "where ffmpeg is installed)")
+    scene_args(t)
+    t.add_argument("-o", dest="output_dir", required=True, help="folder for frame_0000.png, ...")
+    t.add_argument("--frames", type=int, default=36, help="frames per full turn (default 36)")
+    t.add_argument("--degrees", type=float, default=360.0, help="how far the camera turns (default 360)")
+    t.add_argument("--size", default="640x360", help="WIDTHxHEIGHT (default 640x360)")
+    t.add_argument("--mode", choices=("fast", "exact", "brute"))
+    t.add_argument("--alpha", action="store_true", help="RGBA frames, coverage as alpha")
+    t.add_argument("--no-video", action="store_true", help="frames only, even where ffmpeg is installed")
+    t.add_argument("--light", action="store_true", help="turn the lights (light.rig_rotation), not the camera")
+    t.set_defaults(func=cmd_turntable)
 
     i = sub.add_parser("info", help="containers, fibers and GPU bytes of a preset or groom")
     scene_args(i)
@@ -274,7 +420,7 @@ def make_parser() -> argparse.ArgumentParser:
     sub.add_parser("presets", help="list the bundled presets").set_defaults(func=cmd_presets)
 
     v = sub.add_parser("view", help="open the lookdev viewer")
-    v.add_argument("target", nargs="?", help="preset name or file, or a groom file")
+    scene_args(v)
     v.add_argument("--script", help="run a viewer script (automated sessions and tests)")
     v.add_argument("--size", default="1280x720", help="window size WIDTHxHEIGHT (default 1280x720)")
     v.set_defaults(func=cmd_view)

@@ -185,6 +185,28 @@ SPEC: tuple[Param, ...] = (
     P("look.background", tuple, (0.06, 0.065, 0.075), "background colour (linear RGB)", 0.0, 1.0),
     P("look.exposure", float, 0.0, "exposure before the tone map", -10.0, 10.0, "stops"),
 
+    # --- light: fill, rim and environment light besides the key light (look.light_*) ---
+    P("light.rig_rotation", float, 0.0, "turns every light (key, fill, environment) about the up axis; the "
+      "rim stays behind the hair as the camera sees it", -360.0, 360.0, "degrees"),
+    P("light.fill_intensity", float, 0.0, "fill light intensity (0 = off): a soft light opposite the key",
+      0.0, 100.0),
+    P("light.fill_azimuth", float, -120.0, "fill light direction about the up axis", -180.0, 180.0, "degrees"),
+    P("light.fill_elevation", float, 15.0, "fill light height", -89.0, 89.0, "degrees"),
+    P("light.fill_color", tuple, (0.75, 0.85, 1.0), "fill light colour (linear RGB)", 0.0, 1.0),
+    P("light.rim_intensity", float, 0.0, "rim (back) light intensity (0 = off): lights the hair's edges "
+      "from behind", 0.0, 100.0),
+    P("light.rim_azimuth", float, 0.0, "rim light direction from straight behind the hair, as the camera "
+      "sees it (it follows the camera)", -180.0, 180.0, "degrees"),
+    P("light.rim_elevation", float, 30.0, "rim light height", -89.0, 89.0, "degrees"),
+    P("light.rim_color", tuple, (1.0, 0.95, 0.9), "rim light colour (linear RGB)", 0.0, 1.0),
+    P("light.environment", str, "off", "image-based light: off, a generated map (studio, sky) or a lat-long "
+      ".exr/.hdr file (light.environment_file)", choices=("off", "studio", "sky", "file")),
+    P("light.environment_file", str, "", "lat-long (equirectangular) .exr or .hdr image when "
+      "light.environment = 'file'"),
+    P("light.environment_intensity", float, 1.0, "environment light strength", 0.0, 100.0),
+    P("light.environment_rotation", float, 0.0, "turns the environment image about the up axis", -360.0,
+      360.0, "degrees"),
+
     # --- quality: the speed-for-accuracy switches ---
     P("quality.mode", str, "exact", "fast: thesis order, first hit wins; exact: nearest hit; brute: every "
       "fiber (reference)", choices=("fast", "exact", "brute")),

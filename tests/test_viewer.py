@@ -146,8 +146,8 @@ def test_every_parameter_gets_a_widget_and_a_new_one_would_too():
     assert kinds["look.color"] == "color" and kinds["quality.mode"] == "combo"
     assert widget_kind(Param("new.flag", bool, False, "a new switch")) == "checkbox"
     assert widget_kind(Param("new.amount", float, 0.5, "a new amount", 0.0, 1.0)) == "slider_float"
-    covered = {g for _, gs in SECTIONS for g in gs}
-    assert {"scene", "fibers", "shape", "look", "quality", "camera"} <= covered
+    covered = {k.split(".")[0] for _, keys in SECTIONS for k in keys}
+    assert {"scene", "fibers", "shape", "look", "light", "quality", "camera"} <= covered
 
 
 def test_explicit_storage_formula():
@@ -161,6 +161,18 @@ def test_explicit_storage_formula():
 def _scene():
     from app.scene.generators import build_scene
     return build_scene(Params())
+
+
+def test_the_turntable_can_turn_the_lights_instead_of_the_camera():
+    s, scene, nav = AppState(), _scene(), CameraController()
+    s.view.turntable, s.view.turntable_speed = True, 30.0
+    nav.update(s, scene, Input(dt=0.1), (640, 360))
+    assert s.params["camera.azimuth"] == pytest.approx(Params()["camera.azimuth"] + 3.0)
+    s.view.turntable_turns = "lights"
+    az = s.params["camera.azimuth"]
+    for _ in range(2):
+        nav.update(s, scene, Input(dt=0.1), (640, 360))
+    assert s.params["camera.azimuth"] == az and s.params["light.rig_rotation"] == pytest.approx(6.0)
 
 
 def test_orbit_pan_zoom_and_frame_all():
@@ -640,3 +652,74 @@ def test_the_strand_sketch_joins_each_strands_own_vertices_only(ctx, renderer):
         assert (np.abs(img - bg).max(axis=2) > 20).mean() > 0.05
     finally:
         vp.release()
+
+
+@needs_xvfb
+def test_ab_compare_turntable_menu_and_the_panel_for_a_groom(tmp_path):
+    """Pin A, change the look: the split shows A left and B right with the same camera; 'A only' shows
+    the pinned look; File > Render turntable writes RGBA frames; a groom hides generator-only controls."""
+    t = tmp_path
+    groom = ROOT.parent / "shared" / "hair-data" / "Bangs_100.hair"
+    steps = [
+        {"viewer": {"show_stats": False}},
+        {"wait_final": True},
+        {"grab": str(t / "a.png"), "final": True},
+        {"pin": "before"},
+        {"set": {"look.color": [0.9, 0.15, 0.1], "light.rim_intensity": 3.0}},
+        {"viewer": {"compare": "off"}},
+        {"wait_final": True},
+        {"grab": str(t / "b.png"), "final": True},
+        {"viewer": {"compare": "split", "compare_split": 0.5}},
+        {"wait": 2},
+        {"wait_final": True},
+        {"grab": str(t / "split.png"), "final": True},
+        {"viewer": {"compare": "A only"}},
+        {"wait": 2},
+        {"grab": str(t / "aonly.png"), "final": True},
+        {"print": "pinned"},
+        {"render_turntable": str(t / "tt"), "frames": 3, "size": [80, 48], "alpha": True},
+        {"wait": 1},
+        {"print": "status"},                                   # one frame per displayed frame: counting
+        {"wait": 6},
+        {"print": "status"},
+        {"print": "shown_controls"},
+    ]
+    if groom.exists():
+        steps += [{"open_groom": str(groom)}, {"wait": 3}, {"print": "shown_controls"}]
+    steps += [{"print": "gl_error"}, {"quit": 0}]
+    lines, err, rc = _viewer({"size": [640, 360], "steps": steps}, tmp_path)
+    assert rc == 0, err
+    got = _merged(lines)
+    assert got["gl_error"] == [[]]
+    a, b, split, aonly = (_png(t / f"{n}.png") for n in ("a", "b", "split", "aonly"))
+    assert np.abs(a - b).max() > 40                           # the change shows
+    w = a.shape[1]
+    left, right = slice(0, w // 2 - 3), slice(w // 2 + 3, w)
+    assert np.abs(split[:, left] - a[:, left]).max() <= 3     # left of the line: A
+    assert np.abs(split[:, right] - b[:, right]).max() <= 3   # right of it: B
+    assert np.abs(aonly - a).max() <= 3                       # flipped to A
+    assert got["pinned"] == ["before"]
+    frames = sorted((t / "tt").glob("frame_*.png"))
+    assert len(frames) == 3
+    from PIL import Image
+    assert Image.open(frames[0]).mode == "RGBA"
+    assert got["status"][0].startswith("turntable: frame ") and "/3" in got["status"][0]
+    assert "turntable: 3 frames" in got["status"][1]
+    shown = got["shown_controls"]
+    assert "scene.count" in shown[0] and "light.rim_color" in shown[0] and "look.melanin" not in shown[0]
+    if groom.exists():
+        assert "scene.groom_cluster" in shown[1]
+        assert not {"scene.count", "scene.radius", "scene.length"} & set(shown[1])
+
+
+@needs_xvfb
+def test_view_takes_set_on_top_of_its_target(tmp_path):
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps({"size": [320, 200], "steps": [{"print": "params"}, {"quit": 0}]}))
+    cmd = [XVFB, "-a", "-s", "-screen 0 1280x1024x24", sys.executable, "-m", "app.cli", "view", "default",
+           "--set", "fibers.rings=3", "--set", "look.color=0.8,0.5,0.3", "--script", str(path)]
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    proc = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    params = next(json.loads(x[len(PREFIX):])["params"] for x in proc.stdout.splitlines() if x.startswith(PREFIX))
+    assert params["fibers.rings"] == 3 and params["look.color"] == [0.8, 0.5, 0.3]

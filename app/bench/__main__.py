@@ -82,6 +82,11 @@ def _main(argv: list[str] | None) -> int:
     if args.list:
         for s in SUITES.values():
             print(f"{s.name:11s} {s.title} (thesis: {s.thesis})")
+        import importlib
+        for name, module in DELEGATED.items():   # reports with their own options: vfiber bench NAME --help
+            doc = (importlib.import_module(module).__doc__ or "").strip().splitlines()
+            title = re.sub(r"^``[^`]*``:\s*", "", doc[0] if doc else "").rstrip(".")
+            print(f"{name:11s} {title} (own options: vfiber bench {name} --help)")
         return 0
     unknown = [s for s in args.suites if s not in SUITES and s != "all"]
     if unknown:

@@ -261,6 +261,7 @@ class Renderer:
         for name, value in values.items():
             if name in prog:
                 prog[name].value = value
+        look.apply_lighting(prog, p, cam.position, cam.target)
         samples = np.zeros((16, 2), np.float32)
         pattern = MSAA_PATTERNS.get(p["quality.msaa"])
         if pattern:

@@ -52,6 +52,7 @@ from ..render.camera import Camera
 from ..render.renderer import Renderer
 from ..scene.containers import Scene
 from ..scene.generators import build_scene
+from .compare import CompareView
 from .display import (CostModel, StripJob, ViewportRenderer, auto_scale, cost_stats, render_still, row_weights,
                       supersample_offsets)
 from .gui import Layout, gui, refine_overlay
@@ -86,6 +87,8 @@ class Viewer:
         self.programs = ProgramCache(glsl_root)
         self.renderer = Renderer(self.ctx, self.programs)
         self.vp = ViewportRenderer(self.ctx, self.renderer, self.programs)
+        self.compare = CompareView(self.ctx)
+        self._turntable: dict[str, Any] | None = None   # File > Render turntable in progress
         self.controller = CameraController()
         self.scene: Scene | None = None
         self._scene_key: tuple | None = None
@@ -167,6 +170,7 @@ class Viewer:
         imgui.backends.glfw_shutdown()
         imgui.destroy_context()
         self.vp.release()
+        self.compare.release()
         self.glfw.destroy_window(self.window)
         self.glfw.terminate()
 
@@ -193,7 +197,7 @@ class Viewer:
         s = self.state
         if self.glfw.get_window_attrib(self.window, self.glfw.ICONIFIED):
             return SHADER_POLL_S      # minimized: nothing to show, nothing to render
-        if self._extra_frames > 0 or s.view.turntable or self._bench or self._grab:
+        if self._extra_frames > 0 or s.view.turntable or self._bench or self._grab or self._turntable:
             return 0.0
         if runner is not None and not runner.done:
             return 0.0
@@ -240,6 +244,8 @@ class Viewer:
         refine_overlay(self.state, self._layout)
         self._navigate(dt)
         self._commands()
+        if self._turntable is not None:
+            self._turntable_step()
         self._update_scene()
         rendered = self.render()
         rect = self._viewport_rect()
@@ -248,6 +254,8 @@ class Viewer:
         self.ctx.clear(0.1, 0.1, 0.11, 1.0)
         self.vp.display(self.ctx.screen, rect, self.state.view.view, self.state.params, self._camera(rect),
                         self.scene, self._heat_max())
+        if self.state.view.view == "shaded":
+            self.compare.draw(self, rect)
         grab_now = self._grab is not None and (not self._grab[1] or self.final_shown())
         if grab_now and not self._grab[2]:
             self._save_grab(rect)
@@ -370,6 +378,8 @@ class Viewer:
                     s.show_error(f"{args['path']}: could not save the screenshot: {e}")
             elif command == "export_osl":
                 self.export_osl(args["path"])
+            elif command == "turntable":
+                self.render_turntable(**args)
             elif command == "ask_save_as":
                 s.commands.insert(0, (command, args))  # the gui opens the dialog next frame
                 break
@@ -840,6 +850,39 @@ class Viewer:
         Path(path).parent.mkdir(parents=True, exist_ok=True)
         Image.fromarray(img).save(path)
 
+    def render_turntable(self, path: str, frames: int = 36, size=(640, 360), alpha: bool = False) -> bool:
+        """File > Render turntable: the current look orbited offscreen into ``path``, one frame per
+        displayed frame (app/turntable.py), the status bar counting."""
+        from ..turntable import iter_turntable
+
+        s = self.state
+        if self.scene is None:
+            s.show_error("no scene to render" + (f": {s.scene_error}" if s.scene_error else ""))
+            return False
+        self._turntable = {"steps": iter_turntable(s.params, path, self.renderer, self.scene, frames=int(frames),
+                                                    size=tuple(size), alpha=alpha),
+                           "path": str(path), "frames": int(frames), "done": 0}
+        return True
+
+    def _turntable_step(self) -> None:
+        job = self._turntable
+        s = self.state
+        try:
+            job["done"], _ = next(job["steps"])
+            s.status = f"turntable: frame {job['done']}/{job['frames']} in {job['path']}"
+            return
+        except StopIteration:
+            from ..turntable import encode_video
+            video, note = encode_video(Path(job["path"]), job["frames"])
+            s.status = f"turntable: {job['done']} frames in {job['path']}" + (f", video {video}" if video else "")
+            emit(turntable=job["path"], frames=job["done"], video=str(video or ""))
+        except Exception as e:  # a full disk, a folder that cannot be made: say it, stay up
+            s.show_error(f"{job['path']}: turntable failed: {e}")
+        self._turntable = None
+        self.vp.park()
+        self.renderer.release_targets()
+        self._shown_key = None
+
     def resize_window(self, width: int, height: int) -> None:
         """Resize as a person dragging the window edge would (scripts and tests)."""
         self.glfw.set_window_size(self.window, int(width), int(height))
@@ -981,12 +1024,13 @@ def initial_state(target: str | None) -> AppState:
 
 
 def run_viewer(target: str | None, *, script: str | None = None, size=(1280, 720),
-               glsl_root: str | None = None) -> int:
+               glsl_root: str | None = None, overrides: dict[str, Any] | None = None) -> int:
     """Open the viewer on a preset (name or path) or a groom file; returns the process exit code.
 
     ``script``: a TOML/JSON script (see app/viewer/script.py) run one step per frame; the window stays
     open after it unless it ends with ``quit``. Exit codes: 0 fine, 1 no OpenGL window, 2 a bad target
     or script. ``glsl_root``: shaders from another folder (a copy to experiment in; hot reload follows it).
+    ``overrides``: ``--set`` values on top of the target (unsaved changes of the opened document).
     """
     runner = None
     if script is not None:
@@ -1000,6 +1044,8 @@ def run_viewer(target: str | None, *, script: str | None = None, size=(1280, 720
             size = parsed.size
     try:
         state = initial_state(target)
+        if overrides:
+            state.edit_many(overrides, undoable=False)
     except ParamError as e:  # PresetError is a ParamError: the message names file, line, key, value
         print(f"vfiber view: {e}", file=sys.stderr)
         return 2

@@ -16,39 +16,16 @@ from typing import Any
 
 from imgui_bundle import imgui
 
-from ..params import GROUPS, SPEC, Param, Params, max_fiber_radius
+from ..params import BY_KEY, SPEC, Param, max_fiber_radius
 from ..presets import bundled_names, presets_dir
 from ..units import human_bytes
 from .display import HEAT_STOPS
-from .state import (EXPLICIT_FORMULA, FRAME_PATHS, INTERACTIVE_MODES, INTERACTIVE_SCALES, VIEWS,
-                    AppState, is_groom_path)
+from . import vocabulary as words
+from .state import (EXPLICIT_FORMULA, FRAME_PATHS, INTERACTIVE_MODES, INTERACTIVE_SCALES, TURNTABLE_TURNS,
+                    VIEWS, AppState, is_groom_path)
 
-# Panel sections: title -> parameter groups. Groups not listed (added to SPEC later) get their own.
-SECTIONS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    ("Containers", ("scene", "fibers")),
-    ("Shape", ("shape",)),
-    ("Look", ("look",)),
-    ("Quality", ("quality",)),
-    ("Camera", ("camera",)),
-)
-
-# When a parameter has no effect, its widget is dimmed (still editable) and the tooltip says why.
-RELEVANCE: dict[str, tuple[Callable[[Params], bool], str]] = {
-    "look.color": (lambda p: p["look.color_mode"] == "rgb", "look.color_mode is not 'rgb'"),
-    "look.melanin": (lambda p: p["look.color_mode"] == "melanin", "look.color_mode is not 'melanin'"),
-    "look.melanin_redness": (lambda p: p["look.color_mode"] == "melanin", "look.color_mode is not 'melanin'"),
-    "look.shadow_density": (lambda p: p["look.self_shadow"] != "off", "look.self_shadow is 'off'"),
-    "scene.groom_file": (lambda p: p["scene.generator"] == "groom", "scene.generator is not 'groom'"),
-    "scene.groom_up": (lambda p: p["scene.generator"] == "groom", "scene.generator is not 'groom'"),
-    "scene.groom_scale": (lambda p: p["scene.generator"] == "groom", "scene.generator is not 'groom'"),
-    "scene.groom_cluster": (lambda p: p["scene.generator"] == "groom", "scene.generator is not 'groom'"),
-    "scene.count": (lambda p: p["scene.generator"] not in ("single", "groom"), "single and groom ignore it"),
-    "scene.seed": (lambda p: p["scene.generator"] in ("carpet", "curved"), "only carpet and curved place randomly"),
-    "scene.bend": (lambda p: p["scene.segments"] > 1, "scene.segments is 1 (a straight guide)"),
-    "shape.curl_frequency": (lambda p: p["shape.curl_amplitude"] > 0, "shape.curl_amplitude is 0"),
-    "shape.curl_pattern": (lambda p: p["shape.curl_amplitude"] > 0, "shape.curl_amplitude is 0"),
-    "shape.twist_pattern": (lambda p: p["shape.twist"] != 0, "shape.twist is 0"),
-}
+# Panel sections, labels and which controls apply: app/viewer/vocabulary.py (no imgui there).
+SECTIONS = words.SECTIONS
 
 SHORTCUTS: tuple[tuple[str, str], ...] = (
     ("LMB drag", "orbit"),
@@ -58,6 +35,7 @@ SHORTCUTS: tuple[tuple[str, str], ...] = (
     ("F", "frame the whole scene"),
     ("Home / R", "reset the camera to the preset's"),
     ("T", "turntable on/off"),
+    ("P", "pin the current look as A (compare A | B)"),
     ("1 .. 7", "views: " + ", ".join(VIEWS)),
     ("Tab", "show/hide the panel"),
     ("Ctrl+O / Ctrl+S / Ctrl+Shift+S", "open / save / save as"),
@@ -149,6 +127,8 @@ def _shortcuts(state: AppState, scratch: dict[str, Any]) -> None:
         if pressed(K.q):
             state.request("quit")
         return
+    if pressed(K.p):
+        state.pin()
     digits = (K._1, K._2, K._3, K._4, K._5, K._6, K._7)
     for i, key in enumerate(digits[:len(VIEWS)]):
         if pressed(key):
@@ -185,6 +165,8 @@ def _menu_bar(state: AppState, scratch: dict[str, Any]) -> float:
         imgui.separator()
         if imgui.menu_item_simple("Screenshot...", "F12"):
             scratch["open_popup"] = "Screenshot"
+        if imgui.menu_item_simple("Render turntable..."):
+            scratch["open_popup"] = "Render turntable"
         if imgui.menu_item_simple("Export OSL...", "", False, state.osl_available):
             scratch["open_popup"] = "Export OSL"
         if not state.osl_available:
@@ -211,12 +193,27 @@ def _menu_bar(state: AppState, scratch: dict[str, Any]) -> float:
         imgui.separator()
         _, state.view.show_panel = imgui.menu_item("Panel", "Tab", state.view.show_panel)
         _, state.view.show_stats = imgui.menu_item("Stats overlay", "", state.view.show_stats)
+        _, state.view.show_stats_details = imgui.menu_item("Stats details (developer)", "",
+                                                           state.view.show_stats_details)
         imgui.separator()
         if imgui.menu_item_simple("Frame all", "F"):
             state.frame_all()
         if imgui.menu_item_simple("Reset camera", "Home"):
             state.reset_camera()
         _, state.view.turntable = imgui.menu_item("Turntable", "T", state.view.turntable)
+        lights = state.view.turntable_turns == "lights"
+        if imgui.menu_item_simple("Turntable turns the lights", "", lights):
+            state.view.turntable_turns = "camera" if lights else "lights"
+        imgui.end_menu()
+    if imgui.begin_menu("Compare"):
+        if imgui.menu_item_simple("Pin current look as A", "P"):
+            state.pin()
+        if imgui.menu_item_simple("Split A | B", "", state.view.compare == "split", state.pinned is not None):
+            state.view.compare = "split"
+        if imgui.menu_item_simple("Flip to A", "", state.view.compare == "A only", state.pinned is not None):
+            state.view.compare = "A only" if state.view.compare != "A only" else "split"
+        if imgui.menu_item_simple("Stop comparing", "", False, state.pinned is not None):
+            state.unpin()
         imgui.end_menu()
     if imgui.begin_menu("Help"):
         _, state.view.show_help = imgui.menu_item("Shortcuts", "F1", state.view.show_help)
@@ -262,51 +259,60 @@ def _panel(state: AppState, scratch: dict[str, Any], x: float, y: float, w: floa
         imgui.pop_text_wrap_pos()
     imgui.separator()
     imgui.push_item_width(-imgui.get_content_region_avail().x * 0.45)
-    sections = list(SECTIONS) + [(g.capitalize(), (g,)) for g in GROUPS
-                                 if not any(g in gs for _, gs in SECTIONS)]
-    for title, groups in sections:
-        params = [p for p in SPEC if p.group in groups]
-        if not params:
+    shown: list[str] = []
+    for title, keys in words.sections():
+        flags = imgui.TreeNodeFlags_.default_open if title in words.OPEN_SECTIONS else 0
+        if not imgui.collapsing_header(title, flags):
             continue
-        flags = imgui.TreeNodeFlags_.default_open if title in ("Containers", "Look", "Quality") else 0
-        if imgui.collapsing_header(title, flags):
-            for group in groups:
-                if len(groups) > 1:
-                    imgui.separator_text(group)
-                for p in params:
-                    if p.group == group:
-                        param_widget(state, scratch, p)
-    if imgui.collapsing_header("Debug view", imgui.TreeNodeFlags_.default_open):
+        if title == "Render":
+            imgui.separator_text("image")
+        hidden: dict[str, list[str]] = {}
+        for key in keys:
+            ok, why = words.applies(state.params, key)
+            if not ok and key not in state.errors and key not in state.pending:
+                hidden.setdefault(why, []).append(words.label(key))
+                continue
+            if key == "camera.azimuth":
+                imgui.separator_text("camera")
+            param_widget(state, scratch, BY_KEY[key])
+            shown.append(key)
+        if hidden:   # what is not shown, and why: nothing disappears without a word
+            imgui.push_text_wrap_pos(0.0)
+            for why, labels in hidden.items():
+                imgui.text_disabled(f"hidden ({why}): {', '.join(labels)}")
+            imgui.pop_text_wrap_pos()
+    state.scratch["shown_controls"] = shown
+    if imgui.collapsing_header("Compare (A/B)", imgui.TreeNodeFlags_.default_open):
+        _compare_panel(state)
+    if imgui.collapsing_header("Debug"):
         _debug_panel(state)
     imgui.pop_item_width()
     imgui.end()
 
 
 def _label(p: Param) -> str:
-    return f"{p.name.replace('_', ' ')}##{p.key}"
+    return f"{words.label(p.key)}##{p.key}"
+
+
+def tooltip_text(p: Param, extra: str = "") -> str:
+    """What hovering a control says: plain help first, then the thesis's name and the preset key."""
+    text = [p.help]
+    if p.key in words.THESIS:
+        text.append("thesis: " + words.THESIS[p.key])
+    text += [f"key: {p.key} (presets, --set)", "allowed: " + p.allowed(), f"default: {_fmt_value(p.default)}"]
+    if extra:
+        text.append(extra)
+    text.append("right-click: reset to default")
+    return "\n".join(text)
 
 
 def _tooltip(state: AppState, p: Param, extra: str = "") -> None:
-    if not imgui.is_item_hovered(imgui.HoveredFlags_.for_tooltip):
-        return
-    text = [p.key, p.help, "allowed: " + p.allowed(), f"default: {_fmt_value(p.default)}"]
-    if extra:
-        text.append(extra)
-    rel = RELEVANCE.get(p.key)
-    if rel is not None and not _relevant(state, p.key):
-        text.append(f"(no effect while {rel[1]})")
-    text.append("right-click: reset to default")
-    imgui.set_tooltip("\n".join(text))
+    if imgui.is_item_hovered(imgui.HoveredFlags_.for_tooltip):
+        imgui.set_tooltip(tooltip_text(p, extra))
 
 
 def _relevant(state: AppState, key: str) -> bool:
-    rel = RELEVANCE.get(key)
-    if rel is None:
-        return True
-    try:
-        return bool(rel[0](state.params))
-    except KeyError:  # a parameter the rule names was renamed: never hide anything because of it
-        return True
+    return words.applies(state.params, key)[0]
 
 
 def _fmt_value(v: Any) -> str:
@@ -361,7 +367,7 @@ def param_widget(state: AppState, scratch: dict[str, Any], p: Param) -> None:
         changed, new = imgui.checkbox(label, bool(shown))
     elif kind == "combo":
         idx = p.choices.index(shown) if shown in p.choices else 0
-        changed, i = imgui.combo(label, idx, list(p.choices))
+        changed, i = imgui.combo(label, idx, [words.choice_label(key, c) for c in p.choices])
         new = p.choices[i]
     elif kind == "text":
         buf_key = f"text:{key}"
@@ -431,6 +437,9 @@ def param_widget(state: AppState, scratch: dict[str, Any], p: Param) -> None:
         imgui.push_text_wrap_pos(0.0)
         imgui.text_colored(AMBER, state.notes[key])
         imgui.pop_text_wrap_pos()
+    if key == "scene.segments" and state.params["scene.generator"] == "groom" and state.stats.guides:
+        chosen = state.stats.segments // max(state.stats.guides, 1)
+        imgui.text_disabled(f"  {'auto: ' if shown == 1 else ''}{chosen} per guide for this groom")
 
 
 def _tidy(v: Any) -> Any:
@@ -451,6 +460,32 @@ def _type_ok(p: Param, v: Any) -> bool:
         return isinstance(v, (tuple, list)) and len(v) == 3 and all(
             isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v)
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and abs(v) < 2**31
+
+
+def _compare_panel(state: AppState) -> None:
+    if imgui.button("Pin current look as A"):
+        state.pin()
+    imgui.set_item_tooltip("keep this look as A; every change after it shows as B (P)")
+    if state.pinned is None:
+        imgui.text_disabled("nothing pinned: pin a look, then change sliders to compare")
+        return
+    imgui.same_line()
+    if imgui.button("Stop"):
+        state.unpin()
+        return
+    imgui.text(f"A = {state.pinned_name}, B = the live look")
+    from .compare import MODES
+    changed, i = imgui.combo("show##compare", MODES.index(state.view.compare), list(MODES))
+    if changed:
+        state.view.compare = MODES[i]
+    if state.view.compare == "split":
+        _, state.view.compare_split = imgui.slider_float("split##compare", state.view.compare_split, 0.0, 1.0,
+                                                         "%.2f")
+    diff = [words.label(k) for k in state.params if not k.startswith("camera.")
+            and state.params[k] != state.pinned[k]]
+    imgui.push_text_wrap_pos(0.0)
+    imgui.text_disabled("B differs in: " + (", ".join(diff) if diff else "nothing yet"))
+    imgui.pop_text_wrap_pos()
 
 
 def _debug_panel(state: AppState) -> None:
@@ -486,6 +521,9 @@ def _debug_panel(state: AppState) -> None:
     imgui.same_line()
     imgui.set_next_item_width(120)
     _, v.turntable_speed = imgui.slider_float("deg/s", v.turntable_speed, -180.0, 180.0, "%.0f")
+    _, i = imgui.combo("turntable turns", TURNTABLE_TURNS.index(v.turntable_turns), list(TURNTABLE_TURNS))
+    v.turntable_turns = TURNTABLE_TURNS[i]
+    imgui.set_item_tooltip("lights: the light rig (rotate all lights) turns under a still camera")
 
 
 # --- overlays ----------------------------------------------------------------------------------------------
@@ -499,29 +537,42 @@ def _overlay_begin(name: str, x: float, y: float, pivot=(0.0, 0.0)) -> bool:
     return imgui.begin(name, None, flags)[0]
 
 
-def _stats_overlay(state: AppState, layout: Layout) -> None:
+def stats_lines(state: AppState) -> list[str]:
+    """The overlay in plain words: what is on screen, how many strands, how fast, how little memory."""
     s = state.stats
-    if _overlay_begin("##stats", layout.x + 10, layout.y + 10):
-        imgui.text_colored(AMBER if s.label.startswith("interactive") else DIM, s.label or "-")
-        w, h = s.render_size
-        samples = f"  {s.samples[0]}/{s.samples[1]} samples" if s.samples[1] > 1 else ""
-        imgui.text(f"render {w}x{h}{samples}")
-        imgui.text(f"frame {s.frame_ms:.1f} ms (median)   fibers {s.render_ms:.1f} ms ({s.render_clock})")
-        if s.edit_latency_ms is not None:
-            imgui.text(f"change -> frame {s.edit_latency_ms:.0f} ms")
-        imgui.text(f"fibers {s.fibers_exact:,} exact   {s.fibers_41:,.0f} (expr. 4.1)")
-        imgui.text(f"containers {s.guides:,} guides, {s.segments:,} segments")
-        ratio = s.explicit_bytes / s.scene_gpu_bytes if s.scene_gpu_bytes else 0.0
-        imgui.text(f"scene on GPU {human_bytes(s.scene_gpu_bytes)}   explicit {human_bytes(s.explicit_bytes)}"
-                   f" ({ratio:,.0f}x)" + frame_bytes_text(s))
-        if s.tests_per_pixel is not None:
-            imgui.text(f"fiber tests / covered pixel {s.tests_per_pixel:.1f} (p99 {s.tests_p99:.0f}; "
-                       f"{s.cost_size[0]}x{s.cost_size[1]}, {s.cost_age_s:.0f} s ago)")
-        else:
-            imgui.text_disabled("fiber tests / covered pixel: after the first still frame")
+    w, h = s.render_size
+    samples = f", {s.samples[0]}/{s.samples[1]} samples" if s.samples[1] > 1 else ""
+    lines = [f"{s.label or '-'}: {w}x{h}{samples}, {s.render_ms:.0f} ms",
+             f"{s.fibers_exact:,} strands drawn from {s.guides:,} guide hairs",
+             f"memory: {human_bytes(s.scene_gpu_bytes)} (storing every strand: {human_bytes(s.explicit_bytes)})"
+             + frame_bytes_text(s)]
+    if state.pinned is not None and state.view.compare != "off":
+        lines.append(f"A: {state.pinned_name} | B: live" if state.view.compare == "split" else f"showing A: {state.pinned_name}")
+    return lines
+
+
+def _stats_overlay(state: AppState, layout: Layout) -> None:
+    """Bottom-right corner of the render: hair is framed in the middle, so a corner keeps it clear."""
+    s = state.stats
+    if _overlay_begin("##stats", layout.x + layout.w - 10, layout.y + layout.h - 10, (1.0, 1.0)):
+        for i, line in enumerate(stats_lines(state)):
+            if i == 0:
+                imgui.text_colored(AMBER if s.label.startswith("interactive") else DIM, line)
+            else:
+                imgui.text(line)
+        if state.view.show_stats_details:
+            imgui.separator()
+            imgui.text(f"frame {s.frame_ms:.1f} ms (median), fibers {s.render_ms:.1f} ms ({s.render_clock})")
+            if s.edit_latency_ms is not None:
+                imgui.text(f"change -> frame {s.edit_latency_ms:.0f} ms")
+            imgui.text(f"thesis expression 4.1: {s.fibers_41:,.0f} fibers; {s.segments:,} container segments")
+            ratio = s.explicit_bytes / s.scene_gpu_bytes if s.scene_gpu_bytes else 0.0
+            imgui.text(f"explicit / virtual memory: {ratio:,.0f}x")
+            if s.tests_per_pixel is not None:
+                imgui.text(f"fiber tests / covered pixel {s.tests_per_pixel:.1f} (p99 {s.tests_p99:.0f})")
+            imgui.text_disabled(s.gl_renderer)
         if s.gl_error != "GL_NO_ERROR":
             imgui.text_colored(RED, f"GL error: {s.gl_error}")
-        imgui.text_disabled(s.gl_renderer)
     imgui.end()
 
 
@@ -565,16 +616,28 @@ def _legend(layout: Layout, title: str, stops, labels: tuple[str, str, str]) -> 
 
 
 def _help_window(state: AppState) -> None:
-    imgui.set_next_window_size(imgui.ImVec2(520 * _ui_scale(), 0), imgui.Cond_.appearing)
+    # sized to the screen and kept inside it; the right column wraps instead of running off the edge
+    vp = imgui.get_main_viewport()
+    width = min(640 * _ui_scale(), vp.size.x - 40)
+    imgui.set_next_window_size(imgui.ImVec2(width, 0), imgui.Cond_.appearing)
+    imgui.set_next_window_pos(vp.get_center(), imgui.Cond_.appearing, imgui.ImVec2(0.5, 0.5))
+    imgui.set_next_window_size_constraints(imgui.ImVec2(200, 0), imgui.ImVec2(vp.size.x - 20, vp.size.y - 40))
     opened, state.view.show_help = imgui.begin("Shortcuts (F1)", state.view.show_help,
                                                imgui.WindowFlags_.no_saved_settings)
-    if opened and imgui.begin_table("keys", 2, imgui.TableFlags_.row_bg | imgui.TableFlags_.borders_inner_v):
+    flags = imgui.TableFlags_.row_bg | imgui.TableFlags_.borders_inner_v | imgui.TableFlags_.sizing_stretch_prop
+    if opened and imgui.begin_table("keys", 2, flags):
+        imgui.table_setup_column("key", imgui.TableColumnFlags_.width_stretch, 0.45)
+        imgui.table_setup_column("what", imgui.TableColumnFlags_.width_stretch, 0.55)
         for key, what in SHORTCUTS:
             imgui.table_next_row()
             imgui.table_next_column()
+            imgui.push_text_wrap_pos(0.0)
             imgui.text(key)
+            imgui.pop_text_wrap_pos()
             imgui.table_next_column()
+            imgui.push_text_wrap_pos(0.0)
             imgui.text(what)
+            imgui.pop_text_wrap_pos()
         imgui.end_table()
     if opened:
         imgui.push_text_wrap_pos(0.0)
@@ -583,11 +646,11 @@ def _help_window(state: AppState) -> None:
                             "delay it renders at full resolution in quality.mode, then accumulates "
                             "quality.supersample^2 samples.")
         imgui.separator_text("The stats overlay")
-        imgui.text_disabled("fibers: exact = whole fibers per ring summed over rings x guides; expr. 4.1 = "
-                            "the thesis's sum of 360/phi_step. Scene on GPU: the container buffer plus the "
-                            "proxy rectangle. " + EXPLICIT_FORMULA + ". Fiber tests / covered pixel: a cost render "
-                            "(at most 640x360) after each still frame, over pixels any container covers. "
-                            "Fibers ms: a GPU timer query (32-bit: past 4.29 s the wall clock is shown).")
+        imgui.text_disabled("strands: whole fibers per ring summed over rings x guide hairs (View > Stats "
+                            "details adds the thesis's expression 4.1, the sum of 360/phi_step). Memory: the "
+                            "container buffer plus the proxy rectangle; storing every strand: " + EXPLICIT_FORMULA
+                            + ". Fiber tests / covered pixel: a cost render (at most 640x360) after each still "
+                            "frame. Times: a GPU timer query (32-bit: past 4.29 s the wall clock is shown).")
         imgui.pop_text_wrap_pos()
     imgui.end()
 
@@ -650,6 +713,7 @@ def _dialogs(state: AppState, scratch: dict[str, Any]) -> None:
     _path_dialog(state, scratch, "Open preset", "Open", _default_dir(state), _do_open, list_files=True)
     _save_as_dialog(state, scratch, center, auto)
     _screenshot_dialog(state, scratch, center, auto)
+    _turntable_dialog(state, scratch, center, auto)
     _path_dialog(state, scratch, "Export OSL", "Export", str(Path(_default_dir(state)) /
                  f"{Path(state.display_name).stem or 'vfiber'}.osl"),
                  lambda st, path: st.request("export_osl", path=path))
@@ -733,6 +797,30 @@ def _save_as_dialog(state: AppState, scratch: dict[str, Any], center, flags) -> 
     imgui.same_line()
     if imgui.button("Cancel") or imgui.is_key_pressed(imgui.Key.escape):
         scratch.pop("save_as", None)
+        imgui.close_current_popup()
+    imgui.end_popup()
+
+
+def _turntable_dialog(state: AppState, scratch: dict[str, Any], center, flags) -> None:
+    imgui.set_next_window_pos(center, imgui.Cond_.appearing, imgui.ImVec2(0.5, 0.5))
+    if not imgui.begin_popup_modal("Render turntable", None, flags)[0]:
+        return
+    form = scratch.setdefault("turntable", {"path": str(Path.cwd() / f"{Path(state.display_name).stem}-turntable"),
+                                            "frames": 36, "size": [1280, 720], "alpha": False})
+    imgui.set_next_item_width(460 * _ui_scale())
+    _, form["path"] = imgui.input_text("folder", form["path"])
+    _, form["frames"] = imgui.slider_int("frames", form["frames"], 4, 360)
+    _, form["size"] = imgui.input_int2("size", form["size"])
+    form["size"] = [min(max(int(x), 16), 8192) for x in form["size"]]
+    _, form["alpha"] = imgui.checkbox("alpha (coverage) in the PNGs", form["alpha"])
+    imgui.text_disabled("frame_0000.png ... one full turn of the camera; turntable.mp4 too where ffmpeg is "
+                        "installed")
+    if imgui.button("Render"):
+        state.request("turntable", path=os.path.expanduser(form["path"]), frames=form["frames"],
+                      size=tuple(form["size"]), alpha=form["alpha"])
+        imgui.close_current_popup()
+    imgui.same_line()
+    if imgui.button("Cancel") or imgui.is_key_pressed(imgui.Key.escape):
         imgui.close_current_popup()
     imgui.end_popup()
 

@@ -114,7 +114,11 @@ class CameraController:
                     az -= kx * KEY_ORBIT_DEG
                     el -= ky * KEY_ORBIT_DEG
         if state.view.turntable and inp.dt > 0:
-            az += state.view.turntable_speed * min(inp.dt, 0.25)
+            step = state.view.turntable_speed * min(inp.dt, 0.25)
+            if state.view.turntable_turns == "lights":   # the light rig turns, the camera stays
+                state.edit("light.rig_rotation", _wrap(p["light.rig_rotation"] + step), undoable=False)
+            else:
+                az += step
 
         if az != p["camera.azimuth"] or el != p["camera.elevation"]:
             changes["azimuth"] = _wrap(az)

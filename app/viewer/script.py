@@ -19,6 +19,8 @@ A script is a TOML or JSON file (by extension; JSON may also be a bare list of s
       { grab = "ui.png", ui = true, final = true },   # the whole window, once the final frame is in
       { save = "look.toml", name = "Look", description = "..." },          # atomic save as
       { export_osl = "look.osl" },           # File > Export OSL (app.export.osl)
+      { pin = "A" },                         # Compare > Pin current look (then viewer.compare = "split")
+      { render_turntable = "tt", frames = 8, size = [320, 180], alpha = true },   # File > Render turntable
       { view = "heat map" },                 # a debug view (names in state.VIEWS)
       { viewer = { frame_path = "readback", interactive_scale = "25%", show_panel = false } },  # ViewSettings
       { key = "F" },                         # a viewer shortcut (camera keys, 1-7, T)
@@ -65,9 +67,10 @@ if TYPE_CHECKING:
 PREFIX = "vfiber-script: "
 ACTIONS = ("open", "set", "wait", "wait_final", "screenshot", "grab", "save", "view", "key", "drag",
            "wheel", "answer", "turntable", "sweep", "bench", "print", "report", "echo", "quit", "revert",
-           "bundled", "open_groom", "wait_seconds", "viewer", "wait_for", "resize", "mouse", "export_osl")
+           "bundled", "open_groom", "wait_seconds", "viewer", "wait_for", "resize", "mouse", "export_osl", "pin",
+           "render_turntable")
 OPTIONS = {"size", "view", "name", "description", "button", "shift", "ctrl", "frames", "values",
-           "quality", "discard", "prefix", "timeout", "final", "ui"}
+           "quality", "discard", "prefix", "timeout", "final", "ui", "alpha"}
 WAIT_FINAL_TIMEOUT_S = 300.0
 
 
@@ -125,13 +128,14 @@ def parse_script(doc: Any, source: str = "<script>") -> Script:
 def set_view_setting(view: Any, name: str, value: Any) -> None:
     """One ViewSettings field, checked against its type and, where there is one, its list of choices."""
     from dataclasses import fields as dc_fields
-    from .state import FRAME_PATHS, INTERACTIVE_MODES, INTERACTIVE_SCALES
+    from .compare import MODES as COMPARE_MODES
+    from .state import FRAME_PATHS, INTERACTIVE_MODES, INTERACTIVE_SCALES, TURNTABLE_TURNS
 
     known = {f.name: f for f in dc_fields(view)}
     if name not in known:
         raise ScriptError(f"viewer setting {name!r} does not exist; settings: {', '.join(known)}")
     choices = {"view": VIEWS, "interactive_scale": INTERACTIVE_SCALES, "interactive_mode": INTERACTIVE_MODES,
-               "frame_path": FRAME_PATHS}.get(name)
+               "frame_path": FRAME_PATHS, "compare": COMPARE_MODES, "turntable_turns": TURNTABLE_TURNS}.get(name)
     current = getattr(view, name)
     if choices is not None and value not in choices:
         raise ScriptError(f"viewer {name} = {value!r}: one of {', '.join(choices)}")
@@ -343,6 +347,11 @@ class ScriptRunner:
             report = state.report()
             report["gl_errors"] = viewer.gl_errors
             Path(str(arg)).write_text(json.dumps(report, indent=2, default=str), encoding="utf-8")
+        elif action == "pin":                  # Compare > Pin current look (A); arg: its name, or true
+            state.pin(arg if isinstance(arg, str) else None)
+        elif action == "render_turntable":     # File > Render turntable: frames into the folder arg
+            viewer.state.request("turntable", path=str(arg), frames=int(step.get("frames", 36)),
+                                 size=tuple(step.get("size") or (640, 360)), alpha=bool(step.get("alpha")))
         elif action == "echo":
             emit(echo=str(arg))
         elif action == "quit":

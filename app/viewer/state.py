@@ -31,6 +31,7 @@ VIEWS: tuple[str, ...] = ("shaded", "fiber ids", "rings", "normals", "depth", "h
 INTERACTIVE_SCALES: tuple[str, ...] = ("25%", "50%", "75%", "100%", "auto")
 INTERACTIVE_MODES: tuple[str, ...] = ("fast", "final mode")
 FRAME_PATHS: tuple[str, ...] = ("direct", "readback")
+TURNTABLE_TURNS: tuple[str, ...] = ("camera", "lights")
 GROOM_SUFFIXES: tuple[str, ...] = (".hair", ".data", ".tfx", ".ply")
 UNDO_DEPTH = 200
 
@@ -53,9 +54,13 @@ class ViewSettings:
     heat_max: float = 0.0                # heat-map top of scale, fiber tests; 0 = automatic (99th percentile)
     turntable: bool = False
     turntable_speed: float = 30.0        # degrees per second
+    turntable_turns: str = "camera"      # one of TURNTABLE_TURNS: what the turntable turns
     show_panel: bool = True
     show_stats: bool = True
     show_help: bool = False
+    show_stats_details: bool = False     # the stats overlay's numbers for developers (cost, GPU, thesis count)
+    compare: str = "off"                 # one of compare.MODES: A/B against the pinned look
+    compare_split: float = 0.5           # where A ends, as a fraction of the render's width
     panel_width: float = 380.0           # points (logical pixels); scaled by the monitor's content scale
 
 
@@ -128,6 +133,8 @@ class AppState:
     scene_error: str | None = None       # the scene could not be built from the current parameters
     shader_error: str | None = None      # a hot reload failed; the last good program stays on screen
     osl_available: bool = False
+    pinned: Params | None = None         # look A of an A/B comparison (Compare > Pin current look)
+    pinned_name: str = ""
 
     last_change: float = 0.0             # perf_counter of the last change to what is rendered
     last_edit: float | None = None       # perf_counter of the last parameter edit not yet on screen
@@ -309,6 +316,22 @@ class AppState:
         self.set_camera(**{k.split(".", 1)[1]: base[k] for k in base if k.startswith("camera.")})
         self.status = "camera reset to the preset's"
 
+    # --- A/B comparison ----------------------------------------------------------------------------
+    def pin(self, name: str | None = None) -> None:
+        """Keep the current look as A; what you change next is B. Turns the split view on."""
+        self.pinned = self.params
+        self.pinned_name = name or f"{self.display_name}{'*' if self.dirty else ''}"
+        if self.view.compare == "off":
+            self.view.compare = "split"
+        self.status = f"pinned {self.pinned_name} as A: changes now show as B, right of the line"
+        self.touch()
+
+    def unpin(self) -> None:
+        self.pinned = None
+        self.pinned_name = ""
+        self.view.compare = "off"
+        self.touch()
+
     # --- errors ------------------------------------------------------------------------------------
     def show_error(self, message: str, key: str | None = None) -> None:
         self.last_error = message
@@ -439,7 +462,8 @@ class AppState:
             "last_error": self.last_error, "last_error_key": self.last_error_key,
             "errors": dict(self.errors), "pending": {k: _jsonable(v) for k, v in self.pending.items()},
             "notes": dict(self.notes), "scene_error": self.scene_error, "shader_error": self.shader_error,
-            "status": self.status, "view": self.view.view, "confirm": self.confirm.message if self.confirm else None,
+            "status": self.status, "view": self.view.view, "compare": self.view.compare,
+            "pinned": self.pinned_name, "shown_controls": list(self.scratch.get("shown_controls", [])), "confirm": self.confirm.message if self.confirm else None,
             "params": {k: _jsonable(v) for k, v in self.params.values.items()},
             "stats": {
                 "frame_ms": s.frame_ms, "render_ms": s.render_ms, "render_clock": s.render_clock,

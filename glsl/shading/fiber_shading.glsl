@@ -118,14 +118,10 @@ Shaded shade_fiber_hit(Segment seg, UnitRay ur, FiberHit hit, vec3 rd, uint segI
     float roughness = clamp(uRoughness * (1.0 + uRoughnessVariation * 2.0 * rough), 0.02, 1.0);
     // fibers deep in the container see less of the sky
     float occlusion = mix(1.0, exp(-3.0 * (1.0 - length(hit.c))), uShadowDensity);
-    vec3 L = uLightDir;
-#if SHADING_MODEL == 1
-    vec3 direct = shade_marschner(T, V, L, color, roughness);
-#else
-    vec3 direct = shade_kajiya_kay(T, N, V, L, color, roughness);
-#endif
-    vec3 radiance = uLightIntensity * light_transmittance(seg, ur, hit, L) * direct
-                  + ambient_fill(N, color, occlusion);
+    ContainerShadow cs = ContainerShadow(transpose(worldFromLocal), hit.c,
+                                         SHADOW_MODE == 0 ? 0.0 : uShadowDensity * uFiberDensity);
+    vec3 radiance = shade_lights(T, N, V, color, roughness, occlusion,
+                                 light_transmittance(seg, ur, hit, uLightDir), cs);
     o.color = tone_map(radiance);
     return o;
 }
