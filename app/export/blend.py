@@ -1,0 +1,351 @@
+"""Export a scene as a self-contained .blend that Cycles renders as it is: ``vfiber export-blend``.
+
+What the file holds (docs/osl.md, "A Blender scene"):
+
+* **One mesh object**, ``vfiber_containers``, at the scene origin (no rotation or scale): a closed box around
+  every container segment (8 vertices, 6 quads; the box spans the segment's bounding slab, joint planes
+  included, and circumscribes its round cross-section). Each face carries its segment as **face-domain
+  attributes**: ``vf_p0``, ``vf_p1`` (end points, object space), ``vf_n0``, ``vf_n1`` (joint planes),
+  ``vf_fx`` (frame x), ``vf_rrg`` (r0, r1, guide), ``vf_v`` (v0, v1, 0): the GL's per-instance rows
+  (app/scene/containers.py), so bent multi-segment guides, taper and joint planes come through unchanged.
+* **The look's material**: a Script node in *Internal* mode whose text (``vfiber.osl``) is the shader of
+  :mod:`app.export.osl`, embedded in the file, compiled by this exporter (the bytecode is saved with the
+  node). Cycles exports a mesh attribute only when a non-script node asks for it, so one Attribute node
+  per name feeds an AOV Output (``vf_keep``, one value pass) through a chain of Vector Math adds.
+* **Camera, key light, background** of ``vfiber render TARGET --size WxH``: the same orbit camera and
+  resolution; a Sun lamp in the preview's key-light direction; a world that shows ``look.background`` to
+  camera rays and lights the fibers with the preview's ambient fill.
+* **Render settings the shader needs**: Cycles on the CPU with OSL, transparent bounces for every box a
+  ray can cross, transparent film, Standard view transform, output to ``//render_####.png`` (relative).
+
+No absolute path of the writing machine and no add-on: ``blender -b scene.blend -f 1`` renders it.
+
+API
+===
+
+``export_blend(params, path, size=(640, 360), name="scene", progress=print) -> BlendStats``
+    Build the scene from ``params`` (a preset's or a groom's) and write the .blend atomically. Imports bpy
+    (the ``[blender]`` extra) into this process and resets its scene.
+``container_boxes(segments) -> (vertices, faces, face_rows)``
+    The proxy mesh as numpy arrays (no bpy): 8 vertices and 6 quads per segment.
+``main(argv) -> int``
+    ``vfiber export-blend TARGET -o scene.blend [--size WxH] [--set KEY=VALUE ...]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+
+from app.params import Params
+
+__all__ = ["BlendStats", "ATTRIBUTES", "container_boxes", "export_blend", "main", "make_parser"]
+
+#: face attributes of the proxy mesh: name -> columns of the segment row (app/scene/containers.py)
+ATTRIBUTES: dict[str, tuple[int, int, int] | tuple[int, int, None]] = {
+    "vf_p0": (0, 1, 2), "vf_p1": (4, 5, 6), "vf_n0": (8, 9, 10), "vf_n1": (12, 13, 14),
+    "vf_fx": (16, 17, 18), "vf_rrg": (3, 7, 19), "vf_v": (11, 15, None),
+}
+OBJECT_NAME = "vfiber_containers"
+TEXT_NAME = "vfiber.osl"
+#: Blender's largest transparent bounce count; each box a ray passes costs two (in and out)
+TRANSPARENT_BOUNCES = 1024
+#: the box circumscribes the round container with this relative margin (the shader intersects the round one)
+BOX_MARGIN = 1e-3
+
+# the 6 quads of a box whose corners are numbered bit 0: +x, bit 1: +y, bit 2: +z; outward normals
+_BOX_FACES = np.array([[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]],
+                      np.int32)
+
+
+@dataclass
+class BlendStats:
+    path: Path
+    segments: int
+    guides: int
+    vertices: int
+    faces: int
+    seconds: float
+    bytes: int
+    size: tuple[int, int]
+
+
+def _joint_slope(n_local_z: np.ndarray) -> np.ndarray:
+    c = np.abs(n_local_z)
+    return np.sqrt(np.maximum(0.0, 1.0 - c * c)) / np.maximum(c, 1e-6)
+
+
+def container_boxes(segments: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(vertices (8N, 3) float32, faces (6N, 4) int32, face_rows (6N,) int: the segment of each face).
+
+    Box of segment k in its frame (ex, ey, ez): |x|, |y| <= rBound (1 + margin), z in [zLo, zHi] padded,
+    the bounding slab of glsl/geometry/container.glsl (make_segment) that holds the joint planes."""
+    s = np.asarray(segments, np.float64)
+    p0, p1 = s[:, 0:3], s[:, 4:7]
+    axis = p1 - p0
+    h = np.linalg.norm(axis, axis=1)
+    ez = axis / h[:, None]
+    fx = s[:, 16:19]
+    ex = fx - ez * (fx * ez).sum(1, keepdims=True)
+    ex /= np.linalg.norm(ex, axis=1)[:, None]
+    ey = np.cross(ez, ex)
+    r = np.maximum(s[:, 3], s[:, 7])
+    n0z = (s[:, 8:11] * ez).sum(1)
+    n1z = (s[:, 12:15] * ez).sum(1)
+    pad = BOX_MARGIN * r
+    z_lo = -r * _joint_slope(n0z) - pad
+    z_hi = h + r * _joint_slope(n1z) + pad
+    half = r * (1.0 + BOX_MARGIN)
+    corners = []
+    for k in range(8):
+        sx = 1.0 if k & 1 else -1.0
+        sy = 1.0 if k & 2 else -1.0
+        z = z_hi if k & 4 else z_lo
+        corners.append(p0 + ex * (sx * half)[:, None] + ey * (sy * half)[:, None] + ez * z[:, None])
+    verts = np.stack(corners, 1).reshape(-1, 3).astype(np.float32)
+    n = len(s)
+    faces = (_BOX_FACES[None] + 8 * np.arange(n, dtype=np.int32)[:, None, None]).reshape(-1, 4)
+    rows = np.repeat(np.arange(n), 6)
+    return verts, faces, rows
+
+
+def _face_attribute(segments: np.ndarray, rows: np.ndarray, cols) -> np.ndarray:
+    out = np.zeros((len(rows), 3), np.float32)
+    for j, c in enumerate(cols):
+        if c is not None:
+            out[:, j] = segments[rows, c]
+    return out
+
+
+# ------------------------------------------------------------------------------------------------------ bpy
+
+
+def _build_mesh(bpy, segments: np.ndarray):
+    verts, faces, rows = container_boxes(segments)
+    mesh = bpy.data.meshes.new(OBJECT_NAME)
+    mesh.vertices.add(len(verts))
+    mesh.vertices.foreach_set("co", verts.ravel())
+    mesh.loops.add(faces.size)
+    mesh.loops.foreach_set("vertex_index", faces.ravel())
+    mesh.polygons.add(len(faces))
+    mesh.polygons.foreach_set("loop_start", np.arange(0, faces.size, 4, dtype=np.int32))
+    mesh.update(calc_edges=True)
+    for name, cols in ATTRIBUTES.items():
+        a = mesh.attributes.new(name, "FLOAT_VECTOR", "FACE")
+        a.data.foreach_set("vector", _face_attribute(segments, rows, cols).ravel())
+    mesh.update()
+    return mesh, len(verts), len(faces)
+
+
+def _material(bpy, scene, source: str, name: str):
+    from . import blender as B
+
+    text = bpy.data.texts.new(TEXT_NAME)
+    text.from_string(source)
+    mat = bpy.data.materials.new(f"vfiber {name}")
+    nt = mat.node_tree
+    for n in list(nt.nodes):
+        if n.bl_idname != "ShaderNodeOutputMaterial":
+            nt.nodes.remove(n)
+    out = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
+    out.target = "CYCLES"
+    out.location = (400, 0)
+    script = nt.nodes.new("ShaderNodeScript")
+    script.name = script.label = "vfiber"
+    script.mode = "INTERNAL"
+    script.script = text
+    reports: list[str] = []
+    import cycles.osl as cycles_osl
+    with B._capture_fds(reports):
+        ok = cycles_osl.update_script_node(script, lambda kind, msg: reports.append(f"{kind}: {msg}"))
+    if not ok or not script.outputs:
+        raise B.BlenderRenderError(f"Blender could not compile the vfiber shader: {' '.join(reports)[-2000:]}")
+    nt.links.new(script.outputs["BSDF"], out.inputs["Surface"])
+    # Cycles exports a mesh attribute only when a non-script node asks for it: one Attribute node per name,
+    # summed into one AOV value (a sink that keeps them alive without touching the image)
+    total = None
+    for i, attr_name in enumerate(ATTRIBUTES):
+        at = nt.nodes.new("ShaderNodeAttribute")
+        at.attribute_type, at.attribute_name = "GEOMETRY", attr_name
+        at.location = (-400, -200 - 120 * i)
+        if total is None:
+            total = at.outputs["Vector"]
+            continue
+        add = nt.nodes.new("ShaderNodeVectorMath")
+        add.operation = "ADD"
+        add.location = (-150, -200 - 120 * i)
+        nt.links.new(total, add.inputs[0])
+        nt.links.new(at.outputs["Vector"], add.inputs[1])
+        total = add.outputs["Vector"]
+    aov = nt.nodes.new("ShaderNodeOutputAOV")
+    aov.aov_name = "vf_keep"
+    aov.location = (150, -400)
+    nt.links.new(total, aov.inputs["Color"])
+    layer_aov = scene.view_layers[0].aovs.add()
+    layer_aov.name, layer_aov.type = "vf_keep", "COLOR"
+    return mat, script
+
+
+def _sun(bpy, p: Params):
+    az, el = math.radians(p["look.light_azimuth"]), math.radians(p["look.light_elevation"])
+    toward = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+    sun = bpy.data.lights.new("vfiber key light", "SUN")
+    # the preview's Lambert-like term is albedo * 0.8 * intensity at normal incidence; Cycles' diffuse
+    # gives albedo * strength / pi
+    sun.energy = 0.8 * math.pi * p["look.light_intensity"]
+    sun.angle = 0.0
+    ob = bpy.data.objects.new("vfiber key light", sun)
+    from mathutils import Vector
+    ob.rotation_euler = Vector(toward).to_track_quat("Z", "Y").to_euler()  # a sun shines along its -Z
+    return ob
+
+
+def _world(bpy, p: Params):
+    world = bpy.data.worlds.new("vfiber world")
+    nt = world.node_tree
+    for n in list(nt.nodes):
+        nt.nodes.remove(n)
+    out = nt.nodes.new("ShaderNodeOutputWorld")
+    seen = nt.nodes.new("ShaderNodeBackground")
+    seen.inputs["Color"].default_value = (*p["look.background"], 1.0)
+    fill = nt.nodes.new("ShaderNodeBackground")
+    # the preview's ambient fill: ambient * albedo * (0.55 + 0.45 max(N.z, 0)), about 0.78 ambient on average
+    a = 0.775 * p["look.ambient"]
+    fill.inputs["Color"].default_value = (a, a, a, 1.0)
+    path = nt.nodes.new("ShaderNodeLightPath")
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    nt.links.new(path.outputs["Is Camera Ray"], mix.inputs["Fac"])
+    nt.links.new(fill.outputs["Background"], mix.inputs[1])
+    nt.links.new(seen.outputs["Background"], mix.inputs[2])
+    nt.links.new(mix.outputs["Shader"], out.inputs["Surface"])
+    return world
+
+
+def _render_settings(scene, p: Params, size: tuple[int, int]) -> None:
+    scene.render.engine = "CYCLES"
+    cy = scene.cycles
+    cy.device = "CPU"
+    cy.shading_system = True
+    cy.samples = 64
+    cy.use_adaptive_sampling = True
+    cy.use_denoising = False
+    cy.max_bounces = 8
+    cy.transparent_max_bounces = TRANSPARENT_BOUNCES
+    render = scene.render
+    render.film_transparent = True
+    render.resolution_x, render.resolution_y = size
+    render.resolution_percentage = 100
+    render.pixel_aspect_x = render.pixel_aspect_y = 1.0
+    render.filepath = "//render_"
+    render.image_settings.file_format = "PNG"
+    render.image_settings.color_mode = "RGBA"
+    scene.frame_start = scene.frame_end = scene.frame_current = 1
+    scene.view_settings.view_transform = "Standard"
+    scene.view_settings.look = "None"
+    scene.view_settings.exposure = p["look.exposure"]
+
+
+def export_blend(params: Params, path: str | Path, size: tuple[int, int] = (640, 360), name: str = "scene",
+                 progress: Callable[[str], None] | None = print) -> BlendStats:
+    """Write the .blend for ``params`` (see the module docstring). Atomic: a failure keeps an old file."""
+    from app.atomic import atomic_path
+    from app.render.camera import Camera
+    from app.scene.generators import build_scene
+
+    from . import blender as B
+    from .osl import osl_source
+
+    path = Path(path)
+    say = progress or (lambda msg: None)
+    t0 = time.perf_counter()
+    bpy, _ = B._bpy()
+    say(f"building the scene of {name} ...")
+    scene_data = build_scene(params)
+    if scene_data.n_segments == 0:
+        raise ValueError(f"{name}: the scene has no containers to export")
+    cam = Camera.from_params(params, scene_data)  # what `vfiber render` uses, whatever the size
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.name = "vfiber"
+    _render_settings(scene, params, size)   # the engine first: the script node asks it for its sockets
+    say(f"{scene_data.n_segments} container segments of {scene_data.n_guides} guides -> one mesh ...")
+    mesh, n_verts, n_faces = _build_mesh(bpy, scene_data.segments)
+    say("compiling the shader ...")
+    mat, _script = _material(bpy, scene, osl_source(params, name), name)
+    mesh.materials.append(mat)
+    ob = bpy.data.objects.new(OBJECT_NAME, mesh)
+    ob.location = tuple(float(v) for v in scene_data.origin)
+    scene.collection.objects.link(ob)
+    cam_ob = B._camera_object(bpy, dict(position=cam.position.tolist(), target=cam.target.tolist(),
+                                        up=cam.up.tolist(), fov_deg=cam.fov, near=cam.near, far=cam.far))
+    cam_ob.name = "vfiber camera"
+    scene.collection.objects.link(cam_ob)
+    scene.camera = cam_ob
+    scene.collection.objects.link(_sun(bpy, params))
+    scene.world = _world(bpy, params)
+    say(f"writing {path} ...")
+    with atomic_path(path) as tmp:
+        # a temporary name ending in .blend: Blender appends .blend otherwise
+        tmp_blend = Path(str(tmp) + ".blend")
+        try:
+            bpy.ops.wm.save_as_mainfile(filepath=str(tmp_blend), compress=True, relative_remap=True, copy=True,
+                                        check_existing=False)
+            os.replace(tmp_blend, tmp)
+        finally:
+            if tmp_blend.exists():
+                tmp_blend.unlink()
+    seconds = time.perf_counter() - t0
+    return BlendStats(path, scene_data.n_segments, scene_data.n_guides, n_verts, n_faces, seconds,
+                      path.stat().st_size, tuple(size))
+
+
+# ------------------------------------------------------------------------------------------ command line
+
+
+def make_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(
+        prog="vfiber export-blend",
+        description="Write a .blend that Blender Cycles renders as it is: every container of the scene on one "
+                    "mesh, the look's OSL shader embedded, the camera, key light and background of the preview. "
+                    "See docs/osl.md.")
+    ap.add_argument("target", metavar="TARGET", help="preset name or .toml file, or a groom file (.hair .data .tfx .ply)")
+    ap.add_argument("-o", dest="output", metavar="OUT.blend", help="output file (default: TARGET.blend)")
+    ap.add_argument("--size", default="640x360", help="render resolution WIDTHxHEIGHT (default 640x360, as vfiber render)")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="override a parameter, e.g. --set fibers.rings=20 (repeatable)")
+    return ap
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    from app.cli import UsageError, parse_size, resolve_params
+
+    from . import blender as B
+
+    args = make_parser().parse_args(list(sys.argv[1:] if argv is None else argv))
+    size = parse_size(args.size)
+    params, _label = resolve_params(args.target, args.set)
+    name = Path(args.target).stem if Path(args.target).suffix else args.target
+    out = Path(args.output or f"{name}.blend")
+    if out.suffix.lower() != ".blend":
+        raise UsageError(f"-o {out}: a Blender scene file ends in .blend")
+    folder = out.parent if str(out.parent) else Path(".")
+    if not folder.is_dir():
+        raise UsageError(f"{out}: folder {folder} does not exist")
+    try:
+        B._bpy()
+    except B.BlenderUnavailable:
+        raise UsageError("export-blend needs Blender's Python module: pip install 'vfiber[blender]' "
+                         "(bpy==5.0.1, Python 3.11)") from None
+    stats = export_blend(params, out, size, name, progress=lambda msg: print(msg, file=sys.stderr))
+    print(f"wrote {out} ({stats.bytes / 1e6:.1f} MB): {stats.segments} container segments of {stats.guides} "
+          f"guides on one mesh, {size[0]}x{size[1]}, {stats.seconds:.1f} s; render it with "
+          f"blender -b {out.name} -f 1")
+    return 0
