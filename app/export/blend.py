@@ -61,9 +61,9 @@ TRANSPARENT_BOUNCES = 1024
 #: the box circumscribes the round container with this relative margin (the shader intersects the round one)
 BOX_MARGIN = 1e-3
 
-# the 6 quads of a box whose corners are numbered bit 0: +x, bit 1: +y, bit 2: +z; outward normals
-_BOX_FACES = np.array([[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]],
-                      np.int32)
+#: sides of the prism around each container: 8 reaches 8 % past the round container (a box: 41 %), so
+#: neighbouring containers' proxies overlap little more than the containers do
+PRISM_SIDES = 8
 
 
 @dataclass
@@ -83,11 +83,14 @@ def _joint_slope(n_local_z: np.ndarray) -> np.ndarray:
     return np.sqrt(np.maximum(0.0, 1.0 - c * c)) / np.maximum(c, 1e-6)
 
 
-def container_boxes(segments: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(vertices (8N, 3) float32, faces (6N, 4) int32, face_rows (6N,) int: the segment of each face).
+def container_boxes(segments: np.ndarray, sides: int = PRISM_SIDES) -> tuple[np.ndarray, list, np.ndarray]:
+    """(vertices (2 sides N, 3) float32, faces (flat vertex indices), face_sizes, face_rows: the segment of
+    each face) of the proxy mesh: per segment a prism of ``sides`` sides circumscribing its round container.
 
-    Box of segment k in its frame (ex, ey, ez): |x|, |y| <= rBound (1 + margin), z in [zLo, zHi] padded,
-    the bounding slab of glsl/geometry/container.glsl (make_segment) that holds the joint planes."""
+    Each prism ends on its segment's joint planes (mitred), so the prisms of one guide meet at its joints
+    instead of overlapping: a ray meets a bent guide's containers in the order it crosses them, and the first
+    container with a fiber on the ray holds the nearest fiber. A joint so steep that a mitred prism would
+    fold (short segment, sharp turn) gets the bounding slab of glsl/geometry/container.glsl instead."""
     s = np.asarray(segments, np.float64)
     p0, p1 = s[:, 0:3], s[:, 4:7]
     axis = p1 - p0
@@ -98,23 +101,33 @@ def container_boxes(segments: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
     ex /= np.linalg.norm(ex, axis=1)[:, None]
     ey = np.cross(ez, ex)
     r = np.maximum(s[:, 3], s[:, 7])
-    n0z = (s[:, 8:11] * ez).sum(1)
-    n1z = (s[:, 12:15] * ez).sum(1)
     pad = BOX_MARGIN * r
-    z_lo = -r * _joint_slope(n0z) - pad
-    z_hi = h + r * _joint_slope(n1z) + pad
-    half = r * (1.0 + BOX_MARGIN)
-    corners = []
-    for k in range(8):
-        sx = 1.0 if k & 1 else -1.0
-        sy = 1.0 if k & 2 else -1.0
-        z = z_hi if k & 4 else z_lo
-        corners.append(p0 + ex * (sx * half)[:, None] + ey * (sy * half)[:, None] + ez * z[:, None])
-    verts = np.stack(corners, 1).reshape(-1, 3).astype(np.float32)
+    half = r * (1.0 + BOX_MARGIN) / math.cos(math.pi / sides)     # the prism's corners, circumscribing
+    n0 = np.stack([(s[:, 8:11] * e).sum(1) for e in (ex, ey, ez)], 1)
+    n1 = np.stack([(s[:, 12:15] * e).sum(1) for e in (ex, ey, ez)], 1)
+    z_lo_slab = -r * _joint_slope(n0[:, 2]) - pad
+    z_hi_slab = h + r * _joint_slope(n1[:, 2]) + pad
+    ang = 2.0 * math.pi * np.arange(sides) / sides
+    cx, cy = np.cos(ang), np.sin(ang)
+    z_lo = -(n0[:, 0:1] * cx + n0[:, 1:2] * cy) * half[:, None] / np.maximum(n0[:, 2:3], 1e-6) - pad[:, None]
+    z_hi = h[:, None] - (n1[:, 0:1] * cx + n1[:, 1:2] * cy) * half[:, None] / np.maximum(n1[:, 2:3], 1e-6) \
+        + pad[:, None]
+    folded = ((z_hi - z_lo).min(1) < 0.05 * h) | (n0[:, 2] < 0.2) | (n1[:, 2] < 0.2)
+    z_lo = np.where(folded[:, None], z_lo_slab[:, None], z_lo)
+    z_hi = np.where(folded[:, None], z_hi_slab[:, None], z_hi)
+    rim = ex[:, None] * (half[:, None] * cx)[..., None] + ey[:, None] * (half[:, None] * cy)[..., None]
+    bottom = p0[:, None] + rim + ez[:, None] * z_lo[..., None]
+    top = p0[:, None] + rim + ez[:, None] * z_hi[..., None]
+    verts = np.concatenate([bottom, top], 1).reshape(-1, 3).astype(np.float32)
     n = len(s)
-    faces = (_BOX_FACES[None] + 8 * np.arange(n, dtype=np.int32)[:, None, None]).reshape(-1, 4)
-    rows = np.repeat(np.arange(n), 6)
-    return verts, faces, rows
+    k = np.arange(sides)
+    quads = np.stack([k, (k + 1) % sides, sides + (k + 1) % sides, sides + k], 1)      # outward: ccw from outside
+    local = np.concatenate([quads.ravel(), k[::-1], sides + k])
+    sizes1 = np.array([4] * sides + [sides, sides], np.int32)
+    faces = (local[None] + 2 * sides * np.arange(n)[:, None]).ravel().astype(np.int32)
+    sizes = np.tile(sizes1, n)
+    rows = np.repeat(np.arange(n), sides + 2)
+    return verts, faces, sizes, rows
 
 
 def _face_attribute(segments: np.ndarray, rows: np.ndarray, cols) -> np.ndarray:
@@ -129,20 +142,21 @@ def _face_attribute(segments: np.ndarray, rows: np.ndarray, cols) -> np.ndarray:
 
 
 def _build_mesh(bpy, segments: np.ndarray):
-    verts, faces, rows = container_boxes(segments)
+    verts, faces, sizes, rows = container_boxes(segments)
     mesh = bpy.data.meshes.new(OBJECT_NAME)
     mesh.vertices.add(len(verts))
     mesh.vertices.foreach_set("co", verts.ravel())
     mesh.loops.add(faces.size)
-    mesh.loops.foreach_set("vertex_index", faces.ravel())
-    mesh.polygons.add(len(faces))
-    mesh.polygons.foreach_set("loop_start", np.arange(0, faces.size, 4, dtype=np.int32))
+    mesh.loops.foreach_set("vertex_index", faces)
+    mesh.polygons.add(len(sizes))
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int32)
+    mesh.polygons.foreach_set("loop_start", starts)
     mesh.update(calc_edges=True)
     for name, cols in ATTRIBUTES.items():
         a = mesh.attributes.new(name, "FLOAT_VECTOR", "FACE")
         a.data.foreach_set("vector", _face_attribute(segments, rows, cols).ravel())
     mesh.update()
-    return mesh, len(verts), len(faces)
+    return mesh, len(verts), len(sizes)
 
 
 def _material(bpy, scene, source: str, name: str):

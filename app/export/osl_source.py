@@ -31,7 +31,7 @@ from pathlib import Path
 __all__ = ["osl_root", "expand", "library_files", "LIBRARY", "SHADER_BODY", "ENTRY", "STAGE"]
 
 #: the files the shader needs, in an order that satisfies their includes
-ENTRY = ("fibers/traverse.osl", "shading/principled_hair.osl")
+ENTRY = ("fibers/traverse.osl", "stages/segment.osl", "shading/principled_hair.osl")
 STAGE = "stages/container.osl"
 _INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+\.osl)"\s*$')
 

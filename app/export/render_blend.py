@@ -30,6 +30,7 @@ def main(argv=None) -> int:
     ap.add_argument("--samples", type=int, default=None, help="override the file's sample count")
     ap.add_argument("--ids", action="store_true", help="emit fiber ids (one ray per pixel centre)")
     ap.add_argument("--threads", type=int, default=0)
+
     a = ap.parse_args(argv)
 
     import bpy
