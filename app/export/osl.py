@@ -264,11 +264,11 @@ def osl_source(params: Params, name: str = "vfiber", description: str = "") -> s
         head += _comment_lines(description)
     head += [
         "//",
-        "// Set-up (docs/osl.md): one mesh object per container (hair cylinder) with its origin at the root,",
-        "// local +Z along the container to the tip, radius and length in object units (the Container",
-        "// inputs, or the mesh attributes vf_radius / vf_length); this shader as the material's surface.",
-        "// Where a ray through the container meets no virtual fiber the shader is transparent().",
-        "// It is a port of vfiber's GLSL (glsl/fibers, glsl/geometry, glsl/common/hash.glsl); no trace().",
+        "// Set-up (docs/osl.md): `vfiber export-blend` writes a scene whose proxy mesh carries every container",
+        "// segment as face attributes (vf_p0 ...). By hand: one mesh object per straight container with its",
+        "// origin at the root, local +Z to the tip, radius and length in object units (the Container inputs,",
+        "// or mesh attributes vf_radius / vf_length). Where a ray meets no virtual fiber it is transparent().",
+        "// The library below is osl/ (a mirror of vfiber's glsl/, function by function), inlined; no trace().",
         *_comment_lines("Changed from vfiber's defaults: " + (", ".join(f"{k} = {_short(v)}"
                                                                        for k, v in changed.items()) or "nothing")),
         "",
@@ -360,6 +360,12 @@ def load_look(target: str, assignments: Sequence[str] = ()) -> tuple[Params, str
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = make_parser().parse_args(list(sys.argv[1:] if argv is None else argv))
+    from app.cli import GROOM_SUFFIXES
+
+    if Path(args.preset).suffix.lower() in GROOM_SUFFIXES:
+        raise _usage_error(f"{args.preset} is a groom file: export-osl writes a look's shader for hand-built "
+                           f"containers; for the groom's containers use: vfiber export-blend {args.preset} "
+                           f"-o {Path(args.preset).stem}.blend")
     params, name, description = load_look(args.preset, args.set)
     if args.params_only:
         out = Path(args.output or f"{name}.json")

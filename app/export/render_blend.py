@@ -39,6 +39,12 @@ def main(argv=None) -> int:
     bpy.ops.wm.open_mainfile(filepath=os.path.abspath(a.blend))
     scene = bpy.context.scene
     external = sorted(bpy.utils.blend_paths(absolute=False))
+    scripts = [{"material": mat.name, "mode": node.mode, "filepath": node.filepath,
+                "text": node.script.name if node.script else None,
+                "text_is_internal": bool(node.script) and not node.script.filepath,
+                "bytecode": len(node.bytecode)}
+               for mat in bpy.data.materials if mat.node_tree
+               for node in mat.node_tree.nodes if node.bl_idname == "ShaderNodeScript"]
     if a.samples is not None:
         scene.cycles.samples = a.samples
         scene.cycles.use_adaptive_sampling = False
@@ -55,6 +61,8 @@ def main(argv=None) -> int:
     if a.threads:
         scene.render.threads_mode = "FIXED"
         scene.render.threads = a.threads
+    stats: list[str] = []
+    bpy.app.handlers.render_stats.append(lambda text: stats.append(text))
     im = scene.render.image_settings
     im.file_format, im.color_mode, im.color_depth = "OPEN_EXR", "RGBA", "32"
     with tempfile.TemporaryDirectory() as d:
@@ -69,8 +77,8 @@ def main(argv=None) -> int:
         img.pixels.foreach_get(buf)
     np.save(a.out, np.ascontiguousarray(buf.reshape(h, w, 4)[::-1]))
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
-    print(json.dumps({"seconds": seconds, "peak_rss_bytes": peak, "external_paths": external,
-                      "size": [w, h], "samples": scene.cycles.samples}))
+    print(json.dumps({"seconds": seconds, "peak_rss_bytes": peak, "external_paths": external, "scripts": scripts,
+                      "size": [w, h], "cycles_stats": stats[-1] if stats else "", "samples": scene.cycles.samples}))
     sys.stdout.flush()
     os._exit(0)
 
