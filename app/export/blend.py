@@ -30,6 +30,9 @@ API
     The proxy mesh as numpy arrays (no bpy): 8 vertices and 6 quads per segment.
 ``main(argv) -> int``
     ``vfiber export-blend TARGET -o scene.blend [--size WxH] [--set KEY=VALUE ...]``.
+``export_blend_in_child(params, path, size) -> str``
+    The same in a child process (the viewer: bpy stays out of the GL process); returns its report line,
+    raises RuntimeError with its one-line error.
 """
 
 from __future__ import annotations
@@ -309,9 +312,11 @@ def export_blend(params: Params, path: str | Path, size: tuple[int, int] = (640,
     with atomic_path(path) as tmp:
         # a temporary name ending in .blend: Blender appends .blend otherwise
         tmp_blend = Path(str(tmp) + ".blend")
+        noise: list[str] = []   # Blender prints "Info: Saved copy as ..." with the temporary name
         try:
-            bpy.ops.wm.save_as_mainfile(filepath=str(tmp_blend), compress=True, relative_remap=True, copy=True,
-                                        check_existing=False)
+            with B._capture_fds(noise):
+                bpy.ops.wm.save_as_mainfile(filepath=str(tmp_blend), compress=True, relative_remap=True,
+                                            copy=True, check_existing=False)
             os.replace(tmp_blend, tmp)
         finally:
             if tmp_blend.exists():
@@ -319,6 +324,23 @@ def export_blend(params: Params, path: str | Path, size: tuple[int, int] = (640,
     seconds = time.perf_counter() - t0
     return BlendStats(path, scene_data.n_segments, scene_data.n_guides, n_verts, n_faces, seconds,
                       path.stat().st_size, tuple(size))
+
+
+def export_blend_in_child(params: Params, path: str | Path, size: tuple[int, int] = (640, 360)) -> str:
+    import json
+    import subprocess
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="vfiber-blend-") as d:
+        pj = Path(d) / "params.json"
+        pj.write_text(json.dumps(params.values))
+        code = "import sys; from app.cli import main; sys.exit(main(sys.argv[1:]))"
+        proc = subprocess.run([sys.executable, "-c", code, "export-blend", "--params-json", str(pj), "-o", str(path),
+                               "--size", f"{size[0]}x{size[1]}"], capture_output=True, text=True)
+    if proc.returncode != 0:
+        lines = [ln for ln in proc.stderr.splitlines() if ln.startswith("vfiber:")] or proc.stderr.splitlines()[-1:]
+        raise RuntimeError(lines[-1].removeprefix("vfiber: ") if lines else f"exit status {proc.returncode}")
+    return next((ln for ln in reversed(proc.stdout.splitlines()) if ln.startswith("wrote ")), proc.stdout.strip())
 
 
 # ------------------------------------------------------------------------------------------ command line
@@ -330,7 +352,9 @@ def make_parser() -> argparse.ArgumentParser:
         description="Write a .blend that Blender Cycles renders as it is: every container of the scene on one "
                     "mesh, the look's OSL shader embedded, the camera, key light and background of the preview. "
                     "See docs/osl.md.")
-    ap.add_argument("target", metavar="TARGET", help="preset name or .toml file, or a groom file (.hair .data .tfx .ply)")
+    ap.add_argument("target", metavar="TARGET", nargs="?",
+                    help="preset name or .toml file, or a groom file (.hair .data .tfx .ply)")
+    ap.add_argument("--params-json", metavar="FILE", help=argparse.SUPPRESS)  # the viewer's current parameters
     ap.add_argument("-o", dest="output", metavar="OUT.blend", help="output file (default: TARGET.blend)")
     ap.add_argument("--size", default="640x360", help="render resolution WIDTHxHEIGHT (default 640x360, as vfiber render)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
@@ -345,8 +369,15 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     args = make_parser().parse_args(list(sys.argv[1:] if argv is None else argv))
     size = parse_size(args.size)
-    params, _label = resolve_params(args.target, args.set)
-    name = Path(args.target).stem if Path(args.target).suffix else args.target
+    if args.params_json:
+        import json
+
+        params, name = Params(json.loads(Path(args.params_json).read_text())), Path(args.output or "scene").stem
+    elif args.target:
+        params, _label = resolve_params(args.target, args.set)
+        name = Path(args.target).stem if Path(args.target).suffix else args.target
+    else:
+        raise UsageError("export-blend needs a TARGET: a preset name or file, or a groom file")
     out = Path(args.output or f"{name}.blend")
     if out.suffix.lower() != ".blend":
         raise UsageError(f"-o {out}: a Blender scene file ends in .blend")
