@@ -31,6 +31,8 @@ def main(argv=None) -> int:
     ap.add_argument("--ids", action="store_true", help="emit fiber ids (one ray per pixel centre)")
     ap.add_argument("--threads", type=int, default=0)
 
+    ap.add_argument("--direct-only", action="store_true",
+                    help="no indirect light (max bounces 0): the preview's lighting, one key light and a fill")
     a = ap.parse_args(argv)
 
     import bpy
@@ -58,6 +60,8 @@ def main(argv=None) -> int:
                 if node.bl_idname == "ShaderNodeScript" and "debug_view" in node.inputs:
                     node.inputs["debug_view"].default_value = 1
     scene.cycles.seed = 0
+    if a.direct_only:
+        scene.cycles.max_bounces = 0
     if a.threads:
         scene.render.threads_mode = "FIXED"
         scene.render.threads = a.threads
