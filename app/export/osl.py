@@ -78,6 +78,7 @@ EXPORTED_KEYS: tuple[str, ...] = (
     "shape.twist_pattern",
     "look.model", "look.color_mode", "look.color", "look.melanin", "look.melanin_redness", "look.roughness",
     "look.tint_variation", "look.roughness_variation", "look.self_shadow", "look.shadow_density",
+    "look.light_azimuth", "look.light_elevation", "look.light_intensity", "look.ambient",
     "quality.mode",
 )
 
@@ -100,6 +101,10 @@ _HELP_NOTES = {
     "scene.radius": "in object units; a mesh attribute vf_radius overrides it per object",
     "scene.length": "in object units; a mesh attribute vf_length overrides it per object",
     "look.self_shadow": "traced leaves shadowing to Cycles",
+    "look.light_azimuth": "only for the density self-shadow: light the scene with a lamp (export-blend adds one)",
+    "look.light_elevation": "only for the density self-shadow: light the scene with a lamp (export-blend adds one)",
+    "look.light_intensity": "only weighs the density self-shadow of the key light against the fill's",
+    "look.ambient": "only weighs the density self-shadow of the fill against the key light's",
 }
 
 
