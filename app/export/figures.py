@@ -74,7 +74,6 @@ def tone_map(linear: np.ndarray, exposure: float) -> np.ndarray:
 
 def agreement_row(name: str, target: str, size: str, work: Path, sheet_dir: Path | None, direct: bool = True) -> dict:
     from app.cli import resolve_params
-    from app.export.blend import BlendStats  # noqa: F401  (the exporter must import without bpy)
 
     p, _ = resolve_params(target, [])
     blend = work / f"{name}.blend"
