@@ -369,6 +369,12 @@ def version() -> str:
         return "unknown (not installed)"
 
 
+def cmd_export_blend(args) -> int:
+    from .export.blend import main as export_main
+
+    return export_main(args.rest)
+
+
 def make_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="vfiber", description="Hair and fur lookdev with virtual fibers.")
     ap.add_argument("--version", action="version", version=f"vfiber {version()}")
@@ -433,10 +439,15 @@ def make_parser() -> argparse.ArgumentParser:
                        add_help=False)
     e.add_argument("rest", nargs=argparse.REMAINDER)
     e.set_defaults(func=cmd_export_osl)
+
+    eb = sub.add_parser("export-blend", help="export a preset or groom as a .blend for Cycles (see: vfiber "
+                        "export-blend --help)", add_help=False)
+    eb.add_argument("rest", nargs=argparse.REMAINDER)
+    eb.set_defaults(func=cmd_export_blend)
     return ap
 
 
-PASS_THROUGH = {"bench": cmd_bench, "export-osl": cmd_export_osl}   # they parse their own options
+PASS_THROUGH = {"bench": cmd_bench, "export-osl": cmd_export_osl, "export-blend": cmd_export_blend}   # they parse their own options
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import re
 import sys
 from pathlib import Path
 
@@ -483,3 +484,49 @@ def test_closures_render_in_cycles(cycles, tmp_path, model, mode):
         assert np.isfinite(rgb).all() and rgb.mean() > 1e-3
         means.append(rgb.mean())
     assert means[1] < means[0]
+
+
+# ------------------------------------------------------------------------------------------------------------
+# text into OSL source (app/export/osl_strings.py)
+
+from app.export.osl_strings import osl_identifier, osl_string_literal  # noqa: E402
+
+HOSTILE = ["plain", 'a "quote" and \\ back\\slash', "line\nbreak\rcr\ttab", "nul\0here", "tri??=graph ??/ end???",
+           "bell\x07 del\x7f", "unicode é ✓", '*/ // #define X', '"; } shader evil() { //', "\\"]
+
+
+@pytest.mark.parametrize("text", HOSTILE)
+def test_string_literal_is_one_closed_literal(text):
+    lit = osl_string_literal(text)
+    assert lit[0] == lit[-1] == '"' and "\n" not in lit and "\r" not in lit and "\0" not in lit and "??" not in lit
+    body = lit[1:-1]
+    # every quote inside is escaped: strip escapes pairwise, no bare quote remains
+    assert '"' not in re.sub(r"\\.", "", body)
+
+
+@pytest.mark.parametrize("text", ["my look!", "9lives", "P", "", "color", "é", "ok_name"])
+def test_identifier_is_valid_and_not_reserved(text):
+    ident = osl_identifier(text)
+    assert re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", ident)
+    assert ident not in {"P", "color", "N", "u", "v", "I"}
+    if re.fullmatch(r"[A-Za-z_]\w*", text) and text not in ("P", "color"):
+        assert ident == text
+
+
+@blender_test
+def test_hostile_text_round_trips_through_the_compiler(cycles, tmp_path):
+    """What oslquery reads back is the text (NUL removed), for every hostile string, as label and help."""
+    decl = ", ".join(f"string help{i} = {osl_string_literal(t)}" for i, t in enumerate(HOSTILE))
+    src = tmp_path / "hostile.osl"
+    src.write_text(f"shader hostile(float x = 0 [[ {decl} ]], output closure color C = 0) {{ C = emission(); }}\n")
+    md = cycles.query_osl(src)["parameters"]["x"]["metadata"]
+    assert [md[f"help{i}"] for i in range(len(HOSTILE))] == [t.replace("\0", "") for t in HOSTILE]
+
+
+@blender_test
+def test_hostile_look_name_and_description_compile(cycles, tmp_path):
+    out = tmp_path / "look.osl"
+    X.export_osl(Params({}), out, name='x"; }\n??/ evil', description="desc ??/\nnext */ line")
+    cycles.compile_osl(out, tmp_path / "look.oso")
+    q = cycles.query_osl(tmp_path / "look.oso")
+    assert q["name"] == "vfiber_x" + "_" * 9 + "evil"   # one _ for each of x"; }\n??/ and the space

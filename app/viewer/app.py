@@ -380,6 +380,8 @@ class Viewer:
                 self.export_osl(args["path"])
             elif command == "turntable":
                 self.render_turntable(**args)
+            elif command == "export_blend":
+                self.export_blend(args["path"])
             elif command == "ask_save_as":
                 s.commands.insert(0, (command, args))  # the gui opens the dialog next frame
                 break
@@ -401,6 +403,19 @@ class Viewer:
             s.show_error(f"{path}: OSL export failed: {e}")
             return False
         s.status = f"exported {path}"
+        return True
+
+    def export_blend(self, path: str) -> bool:
+        """File > Export Blender scene: the current parameters as a .blend (app.export.blend, in a child
+        process so bpy never shares this GL process), at the size of the view."""
+        s = self.state
+        try:
+            from ..export import blend
+            size = (max(16, int(self._layout.w)), max(16, int(self._layout.h)))
+            s.status = blend.export_blend_in_child(s.params, path, size)
+        except Exception as e:  # whatever the exporter says, the viewer stays up and shows it
+            s.show_error(f"{path}: Blender export failed: {e}")
+            return False
         return True
 
     # --- scene -------------------------------------------------------------------------------------

@@ -171,6 +171,8 @@ def _menu_bar(state: AppState, scratch: dict[str, Any]) -> float:
             scratch["open_popup"] = "Export OSL"
         if not state.osl_available:
             imgui.set_item_tooltip("app.export.osl is not installed in this build")
+        if imgui.menu_item_simple("Export Blender scene...", "", False, state.osl_available):
+            scratch["open_popup"] = "Export Blender scene"
         imgui.separator()
         if imgui.menu_item_simple("Quit", "Ctrl+Q"):
             state.request("quit")
@@ -717,6 +719,9 @@ def _dialogs(state: AppState, scratch: dict[str, Any]) -> None:
     _path_dialog(state, scratch, "Export OSL", "Export", str(Path(_default_dir(state)) /
                  f"{Path(state.display_name).stem or 'vfiber'}.osl"),
                  lambda st, path: st.request("export_osl", path=path))
+    _path_dialog(state, scratch, "Export Blender scene", "Export", str(Path(_default_dir(state)) /
+                 f"{Path(state.display_name).stem or 'vfiber'}.blend"),
+                 lambda st, path: st.request("export_blend", path=path))
 
 
 def _default_dir(state: AppState) -> str:

@@ -1,0 +1,396 @@
+"""Export a scene as a self-contained .blend that Cycles renders as it is: ``vfiber export-blend``.
+
+What the file holds (docs/osl.md, "A Blender scene"):
+
+* **One mesh object**, ``vfiber_containers``, at the scene origin (no rotation or scale): a closed box around
+  every container segment (8 vertices, 6 quads; the box spans the segment's bounding slab, joint planes
+  included, and circumscribes its round cross-section). Each face carries its segment as **face-domain
+  attributes**: ``vf_p0``, ``vf_p1`` (end points, object space), ``vf_n0``, ``vf_n1`` (joint planes),
+  ``vf_fx`` (frame x), ``vf_rrg`` (r0, r1, guide), ``vf_v`` (v0, v1, 0): the GL's per-instance rows
+  (app/scene/containers.py), so bent multi-segment guides, taper and joint planes come through unchanged.
+* **The look's material**: a Script node in *Internal* mode whose text (``vfiber.osl``) is the shader of
+  :mod:`app.export.osl`, embedded in the file, compiled by this exporter (the bytecode is saved with the
+  node). Cycles exports a mesh attribute only when a non-script node asks for it, so one Attribute node
+  per name feeds an AOV Output (``vf_keep``, one value pass) through a chain of Vector Math adds.
+* **Camera, key light, background** of ``vfiber render TARGET --size WxH``: the same orbit camera and
+  resolution; a Sun lamp in the preview's key-light direction; a world that shows ``look.background`` to
+  camera rays and lights the fibers with the preview's ambient fill.
+* **Render settings the shader needs**: Cycles on the CPU with OSL, transparent bounces for every box a
+  ray can cross, transparent film, Standard view transform, output to ``//render_####.png`` (relative).
+
+No absolute path of the writing machine and no add-on: ``blender -b scene.blend -f 1`` renders it.
+
+API
+===
+
+``export_blend(params, path, size=(640, 360), name="scene", progress=print) -> BlendStats``
+    Build the scene from ``params`` (a preset's or a groom's) and write the .blend atomically. Imports bpy
+    (the ``[blender]`` extra) into this process and resets its scene.
+``container_boxes(segments) -> (vertices, faces, face_rows)``
+    The proxy mesh as numpy arrays (no bpy): 8 vertices and 6 quads per segment.
+``main(argv) -> int``
+    ``vfiber export-blend TARGET -o scene.blend [--size WxH] [--set KEY=VALUE ...]``.
+``export_blend_in_child(params, path, size) -> str``
+    The same in a child process (the viewer: bpy stays out of the GL process); returns its report line,
+    raises RuntimeError with its one-line error.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+
+from app.params import Params
+
+__all__ = ["BlendStats", "ATTRIBUTES", "container_boxes", "export_blend", "main", "make_parser"]
+
+#: face attributes of the proxy mesh: name -> columns of the segment row (app/scene/containers.py)
+ATTRIBUTES: dict[str, tuple[int, int, int] | tuple[int, int, None]] = {
+    "vf_p0": (0, 1, 2), "vf_p1": (4, 5, 6), "vf_n0": (8, 9, 10), "vf_n1": (12, 13, 14),
+    "vf_fx": (16, 17, 18), "vf_rrg": (3, 7, 19), "vf_v": (11, 15, None),
+}
+OBJECT_NAME = "vfiber_containers"
+TEXT_NAME = "vfiber.osl"
+#: Blender's largest transparent bounce count; each box a ray passes costs two (in and out)
+TRANSPARENT_BOUNCES = 1024
+#: the box circumscribes the round container with this relative margin (the shader intersects the round one)
+BOX_MARGIN = 1e-3
+
+#: sides of the prism around each container: 8 reaches 8 % past the round container (a box: 41 %), so
+#: neighbouring containers' proxies overlap little more than the containers do
+PRISM_SIDES = 8
+
+
+@dataclass
+class BlendStats:
+    path: Path
+    segments: int
+    guides: int
+    vertices: int
+    faces: int
+    seconds: float
+    bytes: int
+    size: tuple[int, int]
+
+
+def _joint_slope(n_local_z: np.ndarray) -> np.ndarray:
+    c = np.abs(n_local_z)
+    return np.sqrt(np.maximum(0.0, 1.0 - c * c)) / np.maximum(c, 1e-6)
+
+
+def container_boxes(segments: np.ndarray, sides: int = PRISM_SIDES) -> tuple[np.ndarray, list, np.ndarray]:
+    """(vertices (2 sides N, 3) float32, faces (flat vertex indices), face_sizes, face_rows: the segment of
+    each face) of the proxy mesh: per segment a prism of ``sides`` sides circumscribing its round container.
+
+    Each prism ends on its segment's joint planes (mitred), so the prisms of one guide meet at its joints
+    instead of overlapping: a ray meets a bent guide's containers in the order it crosses them, and the first
+    container with a fiber on the ray holds the nearest fiber. A joint so steep that a mitred prism would
+    fold (short segment, sharp turn) gets the bounding slab of glsl/geometry/container.glsl instead."""
+    s = np.asarray(segments, np.float64)
+    p0, p1 = s[:, 0:3], s[:, 4:7]
+    axis = p1 - p0
+    h = np.linalg.norm(axis, axis=1)
+    ez = axis / h[:, None]
+    fx = s[:, 16:19]
+    ex = fx - ez * (fx * ez).sum(1, keepdims=True)
+    ex /= np.linalg.norm(ex, axis=1)[:, None]
+    ey = np.cross(ez, ex)
+    r = np.maximum(s[:, 3], s[:, 7])
+    pad = BOX_MARGIN * r
+    half = r * (1.0 + BOX_MARGIN) / math.cos(math.pi / sides)     # the prism's corners, circumscribing
+    n0 = np.stack([(s[:, 8:11] * e).sum(1) for e in (ex, ey, ez)], 1)
+    n1 = np.stack([(s[:, 12:15] * e).sum(1) for e in (ex, ey, ez)], 1)
+    z_lo_slab = -r * _joint_slope(n0[:, 2]) - pad
+    z_hi_slab = h + r * _joint_slope(n1[:, 2]) + pad
+    ang = 2.0 * math.pi * np.arange(sides) / sides
+    cx, cy = np.cos(ang), np.sin(ang)
+    z_lo = -(n0[:, 0:1] * cx + n0[:, 1:2] * cy) * half[:, None] / np.maximum(n0[:, 2:3], 1e-6) - pad[:, None]
+    z_hi = h[:, None] - (n1[:, 0:1] * cx + n1[:, 1:2] * cy) * half[:, None] / np.maximum(n1[:, 2:3], 1e-6) \
+        + pad[:, None]
+    folded = ((z_hi - z_lo).min(1) < 0.05 * h) | (n0[:, 2] < 0.2) | (n1[:, 2] < 0.2)
+    z_lo = np.where(folded[:, None], z_lo_slab[:, None], z_lo)
+    z_hi = np.where(folded[:, None], z_hi_slab[:, None], z_hi)
+    rim = ex[:, None] * (half[:, None] * cx)[..., None] + ey[:, None] * (half[:, None] * cy)[..., None]
+    bottom = p0[:, None] + rim + ez[:, None] * z_lo[..., None]
+    top = p0[:, None] + rim + ez[:, None] * z_hi[..., None]
+    verts = np.concatenate([bottom, top], 1).reshape(-1, 3).astype(np.float32)
+    n = len(s)
+    k = np.arange(sides)
+    quads = np.stack([k, (k + 1) % sides, sides + (k + 1) % sides, sides + k], 1)      # outward: ccw from outside
+    local = np.concatenate([quads.ravel(), k[::-1], sides + k])
+    sizes1 = np.array([4] * sides + [sides, sides], np.int32)
+    faces = (local[None] + 2 * sides * np.arange(n)[:, None]).ravel().astype(np.int32)
+    sizes = np.tile(sizes1, n)
+    rows = np.repeat(np.arange(n), sides + 2)
+    return verts, faces, sizes, rows
+
+
+def _face_attribute(segments: np.ndarray, rows: np.ndarray, cols) -> np.ndarray:
+    out = np.zeros((len(rows), 3), np.float32)
+    for j, c in enumerate(cols):
+        if c is not None:
+            out[:, j] = segments[rows, c]
+    return out
+
+
+# ------------------------------------------------------------------------------------------------------ bpy
+
+
+def _build_mesh(bpy, segments: np.ndarray):
+    verts, faces, sizes, rows = container_boxes(segments)
+    mesh = bpy.data.meshes.new(OBJECT_NAME)
+    mesh.vertices.add(len(verts))
+    mesh.vertices.foreach_set("co", verts.ravel())
+    mesh.loops.add(faces.size)
+    mesh.loops.foreach_set("vertex_index", faces)
+    mesh.polygons.add(len(sizes))
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int32)
+    mesh.polygons.foreach_set("loop_start", starts)
+    mesh.update(calc_edges=True)
+    for name, cols in ATTRIBUTES.items():
+        a = mesh.attributes.new(name, "FLOAT_VECTOR", "FACE")
+        a.data.foreach_set("vector", _face_attribute(segments, rows, cols).ravel())
+    mesh.update()
+    return mesh, len(verts), len(sizes)
+
+
+def _material(bpy, scene, source: str, name: str):
+    from . import blender as B
+
+    text = bpy.data.texts.new(TEXT_NAME)
+    text.from_string(source)
+    mat = bpy.data.materials.new(f"vfiber {name}")
+    nt = mat.node_tree
+    for n in list(nt.nodes):
+        if n.bl_idname != "ShaderNodeOutputMaterial":
+            nt.nodes.remove(n)
+    out = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeOutputMaterial")
+    out.target = "CYCLES"
+    out.location = (400, 0)
+    script = nt.nodes.new("ShaderNodeScript")
+    script.name = script.label = "vfiber"
+    script.mode = "INTERNAL"
+    script.script = text
+    reports: list[str] = []
+    import cycles.osl as cycles_osl
+    with B._capture_fds(reports):
+        ok = cycles_osl.update_script_node(script, lambda kind, msg: reports.append(f"{kind}: {msg}"))
+    if not ok or not script.outputs:
+        raise B.BlenderRenderError(f"Blender could not compile the vfiber shader: {' '.join(reports)[-2000:]}")
+    nt.links.new(script.outputs["BSDF"], out.inputs["Surface"])
+    # Cycles exports a mesh attribute only when a non-script node asks for it: one Attribute node per name,
+    # summed into one AOV value (a sink that keeps them alive without touching the image)
+    total = None
+    for i, attr_name in enumerate(ATTRIBUTES):
+        at = nt.nodes.new("ShaderNodeAttribute")
+        at.attribute_type, at.attribute_name = "GEOMETRY", attr_name
+        at.location = (-400, -200 - 120 * i)
+        if total is None:
+            total = at.outputs["Vector"]
+            continue
+        add = nt.nodes.new("ShaderNodeVectorMath")
+        add.operation = "ADD"
+        add.location = (-150, -200 - 120 * i)
+        nt.links.new(total, add.inputs[0])
+        nt.links.new(at.outputs["Vector"], add.inputs[1])
+        total = add.outputs["Vector"]
+    aov = nt.nodes.new("ShaderNodeOutputAOV")
+    aov.aov_name = "vf_keep"
+    aov.location = (150, -400)
+    nt.links.new(total, aov.inputs["Color"])
+    layer_aov = scene.view_layers[0].aovs.add()
+    layer_aov.name, layer_aov.type = "vf_keep", "COLOR"
+    return mat, script
+
+
+def _sun(bpy, p: Params):
+    az, el = math.radians(p["look.light_azimuth"]), math.radians(p["look.light_elevation"])
+    toward = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
+    sun = bpy.data.lights.new("vfiber key light", "SUN")
+    # the preview's Lambert-like term is albedo * 0.8 * intensity at normal incidence; Cycles' diffuse
+    # gives albedo * strength / pi
+    sun.energy = 0.8 * math.pi * p["look.light_intensity"]
+    sun.angle = 0.0
+    ob = bpy.data.objects.new("vfiber key light", sun)
+    from mathutils import Vector
+    ob.rotation_euler = Vector(toward).to_track_quat("Z", "Y").to_euler()  # a sun shines along its -Z
+    return ob
+
+
+def _world(bpy, p: Params):
+    world = bpy.data.worlds.new("vfiber world")
+    nt = world.node_tree
+    for n in list(nt.nodes):
+        nt.nodes.remove(n)
+    out = nt.nodes.new("ShaderNodeOutputWorld")
+    seen = nt.nodes.new("ShaderNodeBackground")
+    seen.inputs["Color"].default_value = (*p["look.background"], 1.0)
+    fill = nt.nodes.new("ShaderNodeBackground")
+    # the preview's ambient fill: ambient * albedo * (0.55 + 0.45 max(N.z, 0)), about 0.78 ambient on average
+    a = 0.775 * p["look.ambient"]
+    fill.inputs["Color"].default_value = (a, a, a, 1.0)
+    path = nt.nodes.new("ShaderNodeLightPath")
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    nt.links.new(path.outputs["Is Camera Ray"], mix.inputs["Fac"])
+    nt.links.new(fill.outputs["Background"], mix.inputs[1])
+    nt.links.new(seen.outputs["Background"], mix.inputs[2])
+    nt.links.new(mix.outputs["Shader"], out.inputs["Surface"])
+    return world
+
+
+def _render_settings(scene, p: Params, size: tuple[int, int]) -> None:
+    scene.render.engine = "CYCLES"
+    cy = scene.cycles
+    cy.device = "CPU"
+    cy.shading_system = True
+    cy.samples = 64
+    cy.use_adaptive_sampling = True
+    cy.use_denoising = False
+    cy.max_bounces = 8
+    cy.transparent_max_bounces = TRANSPARENT_BOUNCES
+    render = scene.render
+    render.film_transparent = True
+    render.resolution_x, render.resolution_y = size
+    render.resolution_percentage = 100
+    render.pixel_aspect_x = render.pixel_aspect_y = 1.0
+    render.filepath = "//render_"
+    render.image_settings.file_format = "PNG"
+    render.image_settings.color_mode = "RGBA"
+    scene.frame_start = scene.frame_end = scene.frame_current = 1
+    scene.view_settings.view_transform = "Standard"
+    scene.view_settings.look = "None"
+    scene.view_settings.exposure = p["look.exposure"]
+
+
+def export_blend(params: Params, path: str | Path, size: tuple[int, int] = (640, 360), name: str = "scene",
+                 progress: Callable[[str], None] | None = print) -> BlendStats:
+    """Write the .blend for ``params`` (see the module docstring). Atomic: a failure keeps an old file."""
+    from app.atomic import atomic_path
+    from app.render.camera import Camera
+    from app.scene.generators import build_scene
+
+    from . import blender as B
+    from .osl import osl_source
+
+    path = Path(path)
+    say = progress or (lambda msg: None)
+    t0 = time.perf_counter()
+    bpy, _ = B._bpy()
+    say(f"building the scene of {name} ...")
+    scene_data = build_scene(params)
+    if scene_data.n_segments == 0:
+        raise ValueError(f"{name}: the scene has no containers to export")
+    cam = Camera.from_params(params, scene_data)  # what `vfiber render` uses, whatever the size
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.name = "vfiber"
+    _render_settings(scene, params, size)   # the engine first: the script node asks it for its sockets
+    say(f"{scene_data.n_segments} container segments of {scene_data.n_guides} guides -> one mesh ...")
+    mesh, n_verts, n_faces = _build_mesh(bpy, scene_data.segments)
+    say("compiling the shader ...")
+    mat, _script = _material(bpy, scene, osl_source(params, name), name)
+    mesh.materials.append(mat)
+    ob = bpy.data.objects.new(OBJECT_NAME, mesh)
+    ob.location = tuple(float(v) for v in scene_data.origin)
+    scene.collection.objects.link(ob)
+    cam_ob = B._camera_object(bpy, dict(position=cam.position.tolist(), target=cam.target.tolist(),
+                                        up=cam.up.tolist(), fov_deg=cam.fov, near=cam.near, far=cam.far))
+    cam_ob.name = "vfiber camera"
+    scene.collection.objects.link(cam_ob)
+    scene.camera = cam_ob
+    scene.collection.objects.link(_sun(bpy, params))
+    scene.world = _world(bpy, params)
+    say(f"writing {path} ...")
+    with atomic_path(path) as tmp:
+        # a temporary name ending in .blend: Blender appends .blend otherwise
+        tmp_blend = Path(str(tmp) + ".blend")
+        noise: list[str] = []   # Blender prints "Info: Saved copy as ..." with the temporary name
+        try:
+            with B._capture_fds(noise):
+                bpy.ops.wm.save_as_mainfile(filepath=str(tmp_blend), compress=True, relative_remap=True,
+                                            copy=True, check_existing=False)
+            os.replace(tmp_blend, tmp)
+        finally:
+            if tmp_blend.exists():
+                tmp_blend.unlink()
+    seconds = time.perf_counter() - t0
+    return BlendStats(path, scene_data.n_segments, scene_data.n_guides, n_verts, n_faces, seconds,
+                      path.stat().st_size, tuple(size))
+
+
+def export_blend_in_child(params: Params, path: str | Path, size: tuple[int, int] = (640, 360)) -> str:
+    import json
+    import subprocess
+    import tempfile
+
+    with tempfile.TemporaryDirectory(prefix="vfiber-blend-") as d:
+        pj = Path(d) / "params.json"
+        pj.write_text(json.dumps(params.values))
+        code = "import sys; from app.cli import main; sys.exit(main(sys.argv[1:]))"
+        proc = subprocess.run([sys.executable, "-c", code, "export-blend", "--params-json", str(pj), "-o", str(path),
+                               "--size", f"{size[0]}x{size[1]}"], capture_output=True, text=True)
+    if proc.returncode != 0:
+        lines = [ln for ln in proc.stderr.splitlines() if ln.startswith("vfiber:")] or proc.stderr.splitlines()[-1:]
+        raise RuntimeError(lines[-1].removeprefix("vfiber: ") if lines else f"exit status {proc.returncode}")
+    return next((ln for ln in reversed(proc.stdout.splitlines()) if ln.startswith("wrote ")), proc.stdout.strip())
+
+
+# ------------------------------------------------------------------------------------------ command line
+
+
+def make_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(
+        prog="vfiber export-blend",
+        description="Write a .blend that Blender Cycles renders as it is: every container of the scene on one "
+                    "mesh, the look's OSL shader embedded, the camera, key light and background of the preview. "
+                    "See docs/osl.md.")
+    ap.add_argument("target", metavar="TARGET", nargs="?",
+                    help="preset name or .toml file, or a groom file (.hair .data .tfx .ply)")
+    ap.add_argument("--params-json", metavar="FILE", help=argparse.SUPPRESS)  # the viewer's current parameters
+    ap.add_argument("-o", dest="output", metavar="OUT.blend", help="output file (default: TARGET.blend)")
+    ap.add_argument("--size", default="640x360", help="render resolution WIDTHxHEIGHT (default 640x360, as vfiber render)")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="override a parameter, e.g. --set fibers.rings=20 (repeatable)")
+    return ap
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    from app.cli import UsageError, parse_size, resolve_params
+
+    from . import blender as B
+
+    args = make_parser().parse_args(list(sys.argv[1:] if argv is None else argv))
+    size = parse_size(args.size)
+    if args.params_json:
+        import json
+
+        params, name = Params(json.loads(Path(args.params_json).read_text())), Path(args.output or "scene").stem
+    elif args.target:
+        params, _label = resolve_params(args.target, args.set)
+        name = Path(args.target).stem if Path(args.target).suffix else args.target
+    else:
+        raise UsageError("export-blend needs a TARGET: a preset name or file, or a groom file")
+    out = Path(args.output or f"{name}.blend")
+    if out.suffix.lower() != ".blend":
+        raise UsageError(f"-o {out}: a Blender scene file ends in .blend")
+    folder = out.parent if str(out.parent) else Path(".")
+    if not folder.is_dir():
+        raise UsageError(f"{out}: folder {folder} does not exist")
+    try:
+        B._bpy()
+    except B.BlenderUnavailable:
+        raise UsageError("export-blend needs Blender's Python module: pip install 'vfiber[blender]' "
+                         "(bpy==5.0.1, Python 3.11)") from None
+    stats = export_blend(params, out, size, name, progress=lambda msg: print(msg, file=sys.stderr))
+    print(f"wrote {out} ({stats.bytes / 1e6:.1f} MB): {stats.segments} container segments of {stats.guides} "
+          f"guides on one mesh, {size[0]}x{size[1]}, {stats.seconds:.1f} s; render it with "
+          f"blender -b {out.name} -f 1")
+    return 0
