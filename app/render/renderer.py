@@ -176,7 +176,8 @@ class Renderer:
                 msaa: int = 0) -> moderngl.Program:
         defines = {"TRAVERSAL": MODES[mode], "MAX_RINGS": MAX_RINGS, "MAX_SUB": MAX_SUB,
                    "HASH_THESIS": int(p["fibers.hash"] == "thesis"), "COST_PASS": int(cost),
-                   "SHAPED": int(is_shaped(p)), "SHADING_MODEL": SHADING_MODELS[p["look.model"]],
+                   "SHAPED": int(is_shaped(p)), "SHAPE_CURL": shape_curl_define(p),
+                   "SHADING_MODEL": SHADING_MODELS[p["look.model"]],
                    "SHADOW_MODE": SHADOW_MODES[p["look.self_shadow"]], "SUPERSAMPLE": supersample,
                    "MSAA_SAMPLES": msaa}
         return self.programs.get(self.ctx, "stages/container.vert", "stages/container.frag", defines)
@@ -477,6 +478,11 @@ def draw_ranges(p: Params, scene: Scene, mode: str, rays: int = 1) -> list[tuple
             start, used, top = pos, 0, 0
     ranges.append((start, total))
     return ranges
+
+
+def shape_curl_define(p: Params) -> int:
+    """What the shaped traversal builds in for the curl (glsl/fibers/shape.glsl): 0 none, 1 helix, 2 wave."""
+    return 0 if p["shape.curl_amplitude"] <= 0 else 1 + CURL_PATTERNS[p["shape.curl_pattern"]]
 
 
 def is_shaped(p: Params) -> bool:

@@ -3,7 +3,7 @@
 //   float shape_twist(float v, int ring)     rotation of the pattern about the axis, radians
 //   float shape_scale(float v)               ellipsoid: radial scale of every ring at height v
 //   RingPoint ring_point(Segment seg, UnitRay ur, float s, int ring)   the ray at s, seen in the ring's frame
-//   vec2  ring_frame_center(vec2 rest, float curlPhase, RingPoint P)    a fiber's centre in that frame
+//   vec2  ring_frame_center(vec2 rest, CurlTurn curl, RingPoint P)      a fiber's centre in that frame
 // v is the guide parameter (0 root .. 1 tip). A fiber's centre at height v is its rest position scaled by
 // the ellipsoid, rotated by the twist, plus the curl offset:
 //   c(v) = E(v) R(tau(v)) rest + curl(v)
@@ -27,7 +27,7 @@ uniform int uCurlPattern;
 const float TWO_PI = 6.28318530718;
 
 #ifndef SHAPE_CURL
-#define SHAPE_CURL 1    // 0: the program is built for curl amplitude 0 and leaves the curl out
+#define SHAPE_CURL 3    // what ring_frame_center builds in: 0 no curl, 1 helix, 2 wave, 3 either (by uniform)
 #endif
 
 float shape_twist(float v, int ring) {
@@ -83,14 +83,53 @@ RingPoint ring_point(Segment seg, UnitRay ur, float s, int ring) {
 
 // c'(v) at the height of P. The helix turns at 2 pi F less the twist's rate in this frame; the wave sways
 // along the ring, which in this frame is a fixed direction (where the fiber is off the axis).
-vec2 ring_frame_center(vec2 rest, float curlPhase, RingPoint P) {
-    vec2 c = P.e * rest;
-#if SHAPE_CURL
+// Curl turn: the curl's angle at P is (a - tau, a) with a = 2 pi (F v + phase); from one end of a chord
+// piece to the other both advance by the same amount for every fiber (ring_curl_step), so a piece's far
+// end takes its curl from the near end's by a rotation instead of another sine and cosine.
+struct CurlTurn { vec2 h; vec2 w; };    // (cos, sin) of a - tau (helix) and of a (wave)
+
+CurlTurn curl_turn(float curlPhase, RingPoint P) {
     float a = TWO_PI * (uCurlFrequency * P.v + curlPhase);
+    CurlTurn c;
+    c.h = vec2(cos(a - P.tau), sin(a - P.tau));
+    c.w = vec2(cos(a), sin(a));
+#if SHAPE_CURL == 1
+    c.w = vec2(1.0, 0.0);
+#elif SHAPE_CURL == 2
+    c.h = vec2(1.0, 0.0);
+#endif
+    return c;
+}
+
+// (cos, sin) of how far the helix's and the wave's angles advance from P0 to P1: (helix, wave) as a vec4.
+vec4 ring_curl_step(RingPoint P0, RingPoint P1) {
+    float dw = TWO_PI * uCurlFrequency * (P1.v - P0.v);
+    float dh = dw - (P1.tau - P0.tau);
+    return vec4(cos(dh), sin(dh), cos(dw), sin(dw));
+}
+
+CurlTurn curl_advance(CurlTurn c, vec4 step) {
+    CurlTurn n;
+    n.h = vec2(c.h.x * step.x - c.h.y * step.y, c.h.y * step.x + c.h.x * step.y);
+    n.w = vec2(c.w.x * step.z - c.w.y * step.w, c.w.y * step.z + c.w.x * step.w);
+    return n;
+}
+
+vec2 ring_frame_center(vec2 rest, CurlTurn curl, RingPoint P) {
+    vec2 c = P.e * rest;
+#if SHAPE_CURL != 0
+#if SHAPE_CURL != 1
     float r2 = dot(rest, rest);
     vec2 along = r2 > 0.0 && P.e > 0.0 ? vec2(-rest.y, rest.x) * inversesqrt(r2) : vec2(P.cs.x, -P.cs.y);
-    vec2 helix = vec2(cos(a - P.tau), sin(a - P.tau));
-    c += uCurlAmplitude * (uCurlPattern == 0 ? helix : sin(a) * along);
+    vec2 wave = curl.w.y * along;
+#endif
+#if SHAPE_CURL == 1
+    c += uCurlAmplitude * curl.h;
+#elif SHAPE_CURL == 2
+    c += uCurlAmplitude * wave;
+#else
+    c += uCurlAmplitude * (uCurlPattern == 0 ? curl.h : wave);
+#endif
 #endif
     return c;
 }

@@ -14,8 +14,8 @@
 // at its end, which sweeps the angles between them as seen from the axis; only the fibers whose slot,
 // widened by the ring's reach (jitter, the curl amplitude and the fiber's disc), meets those angles are
 // tested on it. The twist never widens a window.
-// exact: every candidate of a piece is tested, and the pieces (and arcs) stop once the next one starts
-// beyond the nearest hit so far. fast: the first hit wins. brute: every fiber of the draw's share on every
+// exact: a piece's candidates up to two reaches past its latest improvement are tested, and the pieces
+// (and arcs) stop once the next one starts beyond the nearest hit so far. fast: the first hit wins. brute: every fiber of the draw's share on every
 // piece of every arc.
 // The loops are written in traverse_straight's style: no early return and no `continue`; a piece or arc
 // with nothing to do gets no candidates (docs/performance.md).
@@ -61,6 +61,7 @@ float shaped_curl_phase(uint ringKey, int ring, int j) {
 
 FiberHit traverse_shaped(Segment seg, UnitRay ur) {
     FiberHit best = no_hit();
+    FiberRay fr = fiber_ray(seg, ur);
     Bands bands = segment_bands(seg);
     vec2 o2 = ur.O.xy;
     vec2 d2 = ur.D.xy;
@@ -117,10 +118,18 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
         uint ringKey = ring_key(uSeed, seg.guide, i);
         float reach = shaped_reach(i, bands);
         int n = uRingN[i].x;
+        // exact: a hit nearer than one on candidate t lies before it on the chord, so its fiber's slot is
+        // at most two reaches further on (traverse_straight's rule, with the shaped reach)
+        int after = gMode == 1 ? int(floor(2.0 * reach * ringB.z * (1.0 + 1e-6))) + 1 : n;
         bool found = false;
         for (int k = 0; k < pieces; k++) {
             gIters++;
             RingPoint P1 = k == pieces - 1 ? Pb : ring_point(seg, ur, a + float(k + 1) * step, i);
+#if SHAPE_CURL != 0
+            vec4 curlStep = ring_curl_step(P0, P1);
+#else
+            vec4 curlStep = vec4(0.0);
+#endif
             // the candidates: slots within the reach of the angles the piece sweeps (a chord never
             // sweeps half a turn or more: past 2.5 radians it passes so near the axis that all are taken)
             vec2 pA = dot(P0.p, P0.p) > 0.0 ? P0.p : P1.p;
@@ -147,7 +156,7 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
                 fiber_center_keyed(ring, ringB, ringKey, i, j, rest, vEnd);
                 float phase = shaped_curl_phase(ringKey, i, j);
                 int kind;
-                float s = piece_entry(seg, ur, P0, P1, rest, phase, vEnd, kind);
+                float s = piece_entry(seg, fr, P0, P1, curlStep, rest, phase, vEnd, kind);
                 s = i == gSkipRing && j == gSkipFiber ? INF : s;
                 bool better = beats(s, i, j, best.s, best.ring, best.fiber);
                 best.s = better ? s : best.s;
@@ -157,7 +166,7 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
                 bestRest = better ? rest : bestRest;
                 bestPhase = better ? phase : bestPhase;
                 found = found || better;
-                end = better && gMode == 0 ? t : end;          // fast: the first fiber found wins
+                end = !better ? end : (gMode == 0 ? t : min(end, t + 1 + after));   // fast: the first wins
             }
             // exact: no later piece can start before the nearest hit; fast: stop at the first
             bool stop = gMode == 0 ? found : (gMode == 1 && P1.s >= best.s);
