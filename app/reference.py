@@ -528,7 +528,7 @@ def chord_pieces(sh: Shape, lay: RingLayout, length, dv, sa, ring, e_lo: float):
     rate2 = 2.0 * 2 * math.pi * abs(sh.twist) if sh.twist_pattern == 1 else 0.0
     f = 2 * math.pi * sh.curl_frequency
     curl = sh.curl_amplitude * ((f + rate) ** 2 + rate2 if sh.curl_pattern == 0 else f * f)
-    ell = rho * 4.0 * sh.ellipsoid ** 2 / max(e_lo, 0.25) ** 3
+    ell = rho * 4.0 * sh.ellipsoid ** 2 / np.maximum(e_lo, 0.25) ** 3
     bend_v = r * (rate * rate + rate2) + ell + curl
     bend_l = dv * dv * bend_v + 2.0 * rate * dv * length * sa
     n = np.ceil(np.sqrt(bend_l / (0.8 * max(lay.fiber_radius, 1e-30))))
@@ -595,7 +595,7 @@ def shaped_nearest_segment(sh: Shape, lay: RingLayout, seg: Segment, ur: UnitRay
         j = np.arange(lay.n[i])
         rest_x, rest_y, v_end = fiber_center(lay, seg.guide, np.full_like(j, i), j)
         phase = fiber_randoms(lay, seg.guide, np.full_like(j, i), j, CH_CURL)
-        for sA, sB in arcs:
+        for side, (sA, sB) in enumerate(arcs):
             sA = np.maximum(sA, s0)
             sB = np.minimum(sB, s1)
             rows = np.nonzero(~stopped & (sA <= sB))[0]
@@ -604,9 +604,28 @@ def shaped_nearest_segment(sh: Shape, lay: RingLayout, seg: Segment, ur: UnitRay
                 r = rows[c:c + step_rows]
                 a, b = sA[r], sB[r]
                 Or, Dr = O[r], D[r]
+                e_lo_arc = e_lo
+                if sh.ellipsoid > 0:
+                    # shaped.glsl: the arc's heights bound the scale tighter; the band shrinks to match
+                    va, vb = unit_to_v(seg, Or[:, 2] + a * Dr[:, 2]), unit_to_v(seg, Or[:, 2] + b * Dr[:, 2])
+                    ea, eb = shape_scale(sh, va), shape_scale(sh, vb)
+                    e_lo_arc = np.minimum(ea, eb)
+                    e_hi_arc = np.where((np.minimum(va, vb) <= 0.5) & (np.maximum(va, vb) >= 0.5), 1.0,
+                                        np.maximum(ea, eb))
+                    t_in = np.maximum(0.0, e_lo_arc * (lay.rho[i] - lay.max_dr[i]) - grow)
+                    t_out = e_hi_arc * (lay.rho[i] + lay.max_dr[i]) + grow
+                    to0, to1 = circle_interval(o2[r, 0], o2[r, 1], d2[r, 0], d2[r, 1], 0.0, 0.0, t_out)
+                    ti0, ti1 = circle_interval(o2[r, 0], o2[r, 1], d2[r, 0], d2[r, 1], 0.0, 0.0, t_in)
+                    before = side == 0
+                    a = np.maximum(a, to0 if before else ti1)
+                    b = np.minimum(b, ti0 if before else to1)
+                    keep = a <= b
+                    r, a, b, Or, Dr, e_lo_arc = r[keep], a[keep], b[keep], Or[keep], Dr[keep], e_lo_arc[keep]
+                    if not len(r):
+                        continue
                 Pa = ring_point(sh, seg, Or, Dr, a, i)
                 Pb = ring_point(sh, seg, Or, Dr, b, i)
-                n = chord_pieces(sh, lay, b - a, np.abs(Pb[0] - Pa[0]), sa[r], i, e_lo)
+                n = chord_pieces(sh, lay, b - a, np.abs(Pb[0] - Pa[0]), sa[r], i, e_lo_arc)
                 step = (b - a) / n
                 s = np.full((len(r), len(j)), np.inf)
                 P0, s_k = Pa, a

@@ -33,7 +33,7 @@ int chord_pieces(float L, float dv, float sa, int ring, float eLo) {
     float rate2 = uTwistPattern == 1 ? 2.0 * TWO_PI * abs(uTwist) : 0.0;
     float f = TWO_PI * uCurlFrequency;
     float curl = uCurlAmplitude * (uCurlPattern == 0 ? (f + rate) * (f + rate) + rate2 : f * f);
-    float ell = rho * 4.0 * uEllipsoid * uEllipsoid / pow(max(eLo, 0.25), 3.0);
+    float ell = rho * 4.0 * uEllipsoid * uEllipsoid / (max(eLo, 0.25) * max(eLo, 0.25) * max(eLo, 0.25));
     float bendV = r * (rate * rate + rate2) + ell + curl;
     // L^2 |q''| without dividing by L
     float bendL = dv * dv * bendV + 2.0 * rate * dv * L * sa;

@@ -23,6 +23,10 @@
 
 #include "fibers/curved.glsl"
 
+#ifndef SHAPE_ELLIPSOID
+#define SHAPE_ELLIPSOID 1   // 0: built for ellipsoid 0 (the bands of the segment are the arc's)
+#endif
+
 struct Bands { float eLo; float eHi; };
 
 Bands segment_bands(Segment seg) {
@@ -106,17 +110,33 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
         float b = min(sB, ur.s1);
         bool inside = applies && a <= b;
         if (inside && gMode != 2 && a >= best.s) break;     // arcs come in order of their start
+        Bands arcBands = bands;
+#if SHAPE_ELLIPSOID
+        // The heights the arc spans bound the ellipsoid's scale tighter than the segment's do: the ring's
+        // fibers there lie in a narrower band, which cuts the arc down and narrows the reach. (The break
+        // above keeps the segment band's start, which is what comes in order.)
+        float va = unit_to_v(seg, ur.O.z + a * ur.D.z);
+        float vb = unit_to_v(seg, ur.O.z + b * ur.D.z);
+        arcBands.eLo = min(shape_scale(va), shape_scale(vb));
+        arcBands.eHi = min(va, vb) <= 0.5 && max(va, vb) >= 0.5 ? 1.0 : max(shape_scale(va), shape_scale(vb));
+        vec2 tight = ring_band(i, arcBands);
+        vec2 outerT = circle_interval(o2, d2, vec2(0.0), tight.y);
+        vec2 innerT = circle_interval(o2, d2, vec2(0.0), tight.x);
+        a = max(a, side == 0 ? outerT.x : innerT.y);        // side 0 lies before the closest approach
+        b = min(b, side == 0 ? innerT.x : outerT.y);
+        inside = inside && a <= b;
+#endif
         ivec2 share = ring_share(i, gMode == 2 ? uBruteRange : uFiberRange);
         bool open = inside && share.x < share.y;            // else none of this ring's fibers is in this draw
         gPieces += open ? 1 : 0;
         RingPoint P0 = ring_point(seg, ur, a, i);
         RingPoint Pb = ring_point(seg, ur, b, i);
-        int pieces = open ? chord_pieces(b - a, abs(Pb.v - P0.v), sa, i, bands.eLo) : 0;
+        int pieces = open ? chord_pieces(b - a, abs(Pb.v - P0.v), sa, i, arcBands.eLo) : 0;
         float step = (b - a) / float(max(pieces, 1));
         vec4 ring = uRingA[i];
         vec4 ringB = uRingB[i];
         uint ringKey = ring_key(uSeed, seg.guide, i);
-        float reach = shaped_reach(i, bands);
+        float reach = shaped_reach(i, arcBands);
         int n = uRingN[i].x;
         // exact: a hit nearer than one on candidate t lies before it on the chord, so its fiber's slot is
         // at most two reaches further on (traverse_straight's rule, with the shaped reach)
