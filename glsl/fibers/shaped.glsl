@@ -46,12 +46,24 @@ vec2 ring_band(int i, Bands b) {
 }
 
 // Angular reach of ring i's fibers about their slots in the ring's frame: the jitter, then the disc of
-// radius fiber radius + curl amplitude about the scaled rest position, seen from the axis.
-float shaped_reach(int i, Bands b) {
-    float dMin = b.eLo * (uRingA[i].x - uRingB[i].x);
+// radius r = fiber radius + curl amplitude about the scaled rest position Q, seen from the axis. A point
+// P within r of Q is within asin(r / |Q|) of Q's direction, and also within asin(r / |P|): Q lies on
+// the half-line through the axis at its angle, and P is |P| sin(angle) from that line. So a piece whose
+// chord keeps away from the axis (rayMin: its nearest distance) narrows the reach of the inner rings,
+// where the disc alone would take the whole ring.
+float shaped_reach(int i, Bands b, float rayMin) {
+    float dMin = max(b.eLo * (uRingA[i].x - uRingB[i].x), rayMin);
     float r = uFiberRadius + uCurlAmplitude;
     float disc = dMin > r ? asin(r / dMin) : 3.14159265359;
     return uRingB[i].y + disc + EPS_ANGLE;
+}
+
+// The distance from the axis to the chord from a to b.
+float chord_distance(vec2 a, vec2 b) {
+    vec2 d = b - a;
+    float len2 = dot(d, d);
+    float t = len2 > 0.0 ? clamp(-dot(a, d) / len2, 0.0, 1.0) : 0.0;
+    return length(a + t * d);
 }
 
 float shaped_curl_phase(uint ringKey, int ring, int j) {
@@ -136,11 +148,7 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
         vec4 ring = uRingA[i];
         vec4 ringB = uRingB[i];
         uint ringKey = ring_key(uSeed, seg.guide, i);
-        float reach = shaped_reach(i, arcBands);
         int n = uRingN[i].x;
-        // exact: a hit nearer than one on candidate t lies before it on the chord, so its fiber's slot is
-        // at most two reaches further on (traverse_straight's rule, with the shaped reach)
-        int after = gMode == 1 ? int(floor(2.0 * reach * ringB.z * (1.0 + 1e-6))) + 1 : n;
         bool found = false;
         for (int k = 0; k < pieces; k++) {
             gIters++;
@@ -152,6 +160,10 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
 #endif
             // the candidates: slots within the reach of the angles the piece sweeps (a chord never
             // sweeps half a turn or more: past 2.5 radians it passes so near the axis that all are taken)
+            float reach = shaped_reach(i, arcBands, chord_distance(P0.p, P1.p) * (1.0 - 1e-5));
+            // exact: a hit nearer than one on candidate t lies before it on the chord, so its fiber's slot
+            // is at most two reaches further on (traverse_straight's rule, with the piece's reach)
+            int after = gMode == 1 ? int(floor(2.0 * reach * ringB.z * (1.0 + 1e-6))) + 1 : n;
             vec2 pA = dot(P0.p, P0.p) > 0.0 ? P0.p : P1.p;
             vec2 pB = dot(P1.p, P1.p) > 0.0 ? P1.p : pA;
             float thA = atan(pA.y, pA.x);
