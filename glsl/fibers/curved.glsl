@@ -1,7 +1,7 @@
 // curved.glsl: a ray against curved fibers (curl, twist, ellipsoid), piece by piece, in the ring's frame.
 //   int   chord_pieces(float L, float dv, float sa, int ring, float eLo)   pieces for one arc of the ray
-//   float piece_entry(Segment seg, FiberRay fr, RingPoint P0, RingPoint P1, vec4 curlStep, vec2 rest,
-//                     float curlPhase, float vEnd, out int kind)
+//   float piece_entry(Segment seg, FiberRay fr, RingPoint P0, RingPoint P1, float invLen, vec4 curlStep,
+//                     vec2 rest, float curlPhase, float vEnd, out int kind)
 // A curved fiber is the set of points whose horizontal (unit-space) distance to its centre line c(v) is
 // at most fiber_radius. The traversal looks at the ray in the frame that turns with the ring's twist
 // (shape.glsl): there a twisted fiber is straight and the ray turns about the axis instead. An arc of the
@@ -43,9 +43,10 @@ int chord_pieces(float L, float dv, float sa, int ring, float eLo) {
 
 // Entry parameter of the ray into one fiber over the piece [P0.s, P1.s], INF on a miss; kind: 0 the
 // fiber's side, 1 its tip (length cut), 2 the piece's start (the ray was inside the fiber there).
-// The length cut as traverse.glsl's fiber_entry places it, with the ray's reciprocals (FiberRay).
-float piece_entry(Segment seg, FiberRay fr, RingPoint P0, RingPoint P1, vec4 curlStep, vec2 rest,
-                  float curlPhase, float vEnd, out int kind) {
+// The length cut as traverse.glsl's fiber_entry places it, with the ray's reciprocals (FiberRay); invLen
+// is 1 / the piece's length, 0 for a piece of no length (the test is then whether P0 is inside).
+float piece_entry(Segment seg, FiberRay fr, RingPoint P0, RingPoint P1, float invLen, vec4 curlStep,
+                  vec2 rest, float curlPhase, float vEnd, out int kind) {
     float z = (vEnd - seg.v0) * fr.zScale;
     float zc = vEnd >= seg.v1 ? INF : z / (seg.r0 + seg.kappa * z);
     float zt = (zc - fr.oz) * fr.invDz;
@@ -61,8 +62,7 @@ float piece_entry(Segment seg, FiberRay fr, RingPoint P0, RingPoint P1, vec4 cur
 #endif
     vec2 q0 = P0.p - ring_frame_center(rest, curl0, P0);
     vec2 q1 = P1.p - ring_frame_center(rest, curl1, P1);
-    float len = P1.s - P0.s;
-    vec2 dq = len > 0.0 ? (q1 - q0) / len : vec2(0.0);
+    vec2 dq = (q1 - q0) * invLen;
     vec2 e = circle_interval(q0, dq, vec2(0.0), uFiberRadius);
     float sIn = max(P0.s + e.x, lo);
     float sOut = min(P0.s + e.y, hi);

@@ -153,6 +153,7 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
         for (int k = 0; k < pieces; k++) {
             gIters++;
             RingPoint P1 = k == pieces - 1 ? Pb : ring_point(seg, ur, a + float(k + 1) * step, i);
+            float invLen = P1.s > P0.s ? 1.0 / (P1.s - P0.s) : 0.0;
 #if SHAPE_CURL != 0
             vec4 curlStep = ring_curl_step(P0, P1);
 #else
@@ -188,7 +189,7 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
                 fiber_center_keyed(ring, ringB, ringKey, i, j, rest, vEnd);
                 float phase = shaped_curl_phase(ringKey, i, j);
                 int kind;
-                float s = piece_entry(seg, fr, P0, P1, curlStep, rest, phase, vEnd, kind);
+                float s = piece_entry(seg, fr, P0, P1, invLen, curlStep, rest, phase, vEnd, kind);
                 s = i == gSkipRing && j == gSkipFiber ? INF : s;
                 bool better = beats(s, i, j, best.s, best.ring, best.fiber);
                 best.s = better ? s : best.s;
