@@ -177,7 +177,7 @@ class Renderer:
         defines = {"TRAVERSAL": MODES[mode], "MAX_RINGS": MAX_RINGS, "MAX_SUB": MAX_SUB,
                    "HASH_THESIS": int(p["fibers.hash"] == "thesis"), "COST_PASS": int(cost),
                    "SHAPED": int(is_shaped(p)), "SHAPE_CURL": shape_curl_define(p),
-                   "SHAPE_ELLIPSOID": int(p["shape.ellipsoid"] > 0),
+                   "SHAPE_ELLIPSOID": int(p["shape.ellipsoid"] > 0), "SHAPE_TWIST": int(p["shape.twist"] != 0),
                    "SHADING_MODEL": SHADING_MODELS[p["look.model"]],
                    "SHADOW_MODE": SHADOW_MODES[p["look.self_shadow"]], "SUPERSAMPLE": supersample,
                    "MSAA_SAMPLES": msaa}

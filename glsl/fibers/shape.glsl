@@ -26,6 +26,9 @@ uniform int uCurlPattern;
 
 const float TWO_PI = 6.28318530718;
 
+#ifndef SHAPE_TWIST
+#define SHAPE_TWIST 1   // 0: built for twist 0 (ring_point skips the rotation)
+#endif
 #ifndef SHAPE_CURL
 #define SHAPE_CURL 3    // what ring_frame_center builds in: 0 no curl, 1 helix, 2 wave, 3 either (by uniform)
 #endif
@@ -74,10 +77,16 @@ RingPoint ring_point(Segment seg, UnitRay ur, float s, int ring) {
     P.s = s;
     P.v = unit_to_v(seg, ur.O.z + s * ur.D.z);
     P.e = shape_scale(P.v);
+    vec2 q = ur.O.xy + s * ur.D.xy;
+#if SHAPE_TWIST
     P.tau = shape_twist(P.v, ring);
     P.cs = vec2(cos(P.tau), sin(P.tau));
-    vec2 q = ur.O.xy + s * ur.D.xy;
     P.p = vec2(P.cs.x * q.x + P.cs.y * q.y, P.cs.x * q.y - P.cs.y * q.x);
+#else
+    P.tau = 0.0;                // no twist: the ring's frame is the container's
+    P.cs = vec2(1.0, 0.0);
+    P.p = q;
+#endif
     return P;
 }
 
