@@ -431,14 +431,15 @@ def draw_ranges(p: Params, scene: Scene, mode: str, rays: int = 1) -> list[tuple
     """Ranges [start, end) of a container's flat fiber numbering, one draw each, such that no SIMD batch of
     fragments passes llvmpipe's loop budget: it would stop every loop in silence and lose fibers.
 
-    Brute force tests each fiber of its chunk once (straight) or on each arc (curved). Fast and exact test
-    a ring's candidates on each piece of the ray in that ring, at most ``candidate_caps`` of them. A batch
+    Brute force tests each fiber of its chunk once (straight) or on each chord piece of each arc (curved).
+    Fast and exact test a ring's candidates on each piece of the ray in that ring, at most
+    ``candidate_caps`` of them (curved: the loop passes of one arc, all its chord pieces included). A batch
     visits a straight ring on its front and back pieces, and the deepest pieces of its lanes (any ring, the
-    costliest one bounds them); a curved ring on up to four arcs. Rings are packed into draws greedily, a
+    costliest one bounds them); a curved ring on up to three arcs (glsl/fibers/shaped.glsl). Rings are packed into draws greedily, a
     ring split when it alone is too much. Every bundled layout needs one draw; 64 rings of 0.01 degree
     fibers, or curled fibers whose reach is the whole ring, need several, and the depth test keeps the
-    nearest hit across them as it does in brute mode. The bound holds with the loops after the ring loop in
-    ring order (uRingOrder), which ``Renderer._draw`` sets whenever there is more than one draw or
+    nearest hit across them as it does in brute mode. The bound holds with the loops after the ring loop
+    (curved: the arcs) in ring order (uRingOrder), which ``Renderer._draw`` sets whenever there is more than one draw or
     ``needs_ring_order``. ``rays``: traversals per fragment."""
     lay = reference.ring_layout(p)
     total = lay.fibers_per_container
