@@ -431,7 +431,7 @@ def rings_crossed(scene: Scene, p: Params, ro, rd, t_near: float = 0.0) -> np.nd
 
 
 # --------------------------------------------------------------------------------------------------
-# Curved fibers (glsl/fibers/shape.glsl, curved.glsl, traverse.glsl: traverse_shaped)
+# Curved fibers (glsl/fibers/shape.glsl, curved.glsl, shaped.glsl: traverse_shaped)
 # --------------------------------------------------------------------------------------------------
 TWIST_PATTERNS = {"uniform": 0, "ramped": 1, "alternating": 2}
 CURL_PATTERNS = {"helix": 0, "wave": 1}
@@ -492,16 +492,47 @@ def unit_to_v(seg: Segment, z_unit):
     return seg.v0 + (seg.v1 - seg.v0) * z / seg.h
 
 
-def chord_pieces(sh: Shape, lay: RingLayout, dv, ring, e_lo: float):
+def ring_point(sh: Shape, seg: Segment, O, D, s, ring):
+    """The ray at s seen in the frame that turns with ring ``ring``'s twist: (v, E(v), tau, cos tau,
+    sin tau, x, y) with (x, y) = R(-tau) (O.xy + s D.xy)."""
+    v = unit_to_v(seg, O[..., 2] + s * D[..., 2])
+    tau = shape_twist(sh, v, ring)
+    ct, st = np.cos(tau), np.sin(tau)
+    qx, qy = O[..., 0] + s * D[..., 0], O[..., 1] + s * D[..., 1]
+    return v, shape_scale(sh, v), tau, ct, st, ct * qx + st * qy, ct * qy - st * qx
+
+
+def ring_frame_center(sh: Shape, rest_x, rest_y, curl_phase, P):
+    """c'(v) = E(v) rest + R(-tau(v)) curl(v): a fiber's centre in its ring's turning frame at point P."""
+    v, e, tau, ct, st = P[:5]
+    cx, cy = e * rest_x, e * rest_y
+    if sh.curl_amplitude > 0:
+        a = 2 * math.pi * (sh.curl_frequency * v + curl_phase)
+        if sh.curl_pattern == 0:
+            cx, cy = cx + sh.curl_amplitude * np.cos(a - tau), cy + sh.curl_amplitude * np.sin(a - tau)
+        else:
+            r2 = rest_x * rest_x + rest_y * rest_y
+            off = (r2 > 0) & (e > 0)
+            inv = 1.0 / np.sqrt(np.where(off, r2, 1.0))
+            ax, ay = np.where(off, -rest_y * inv, ct), np.where(off, rest_x * inv, -st)
+            k = sh.curl_amplitude * np.sin(a)
+            cx, cy = cx + k * ax, cy + k * ay
+    return cx, cy
+
+
+def chord_pieces(sh: Shape, lay: RingLayout, length, dv, sa, ring, e_lo: float):
+    """Chord pieces for an arc of length ``length`` that climbs ``dv`` (curved.glsl: chord_pieces)."""
     rho = lay.rho[ring] + lay.max_dr[ring]
-    curl = sh.curl_amplitude * (2 * math.pi * sh.curl_frequency) ** 2
+    r = rho + lay.fiber_radius + sh.curl_amplitude
     rate = 2 * math.pi * abs(sh.twist) * (2.0 if sh.twist_pattern == 1 else 1.0)
-    ell = rho * 4.0 * sh.ellipsoid ** 2 / max(e_lo, 0.25) ** 3
-    bend = curl + rho * rate * rate + ell
-    if np.all(bend <= 0):
-        return np.ones_like(dv, dtype=np.int64)
-    dv_max = np.sqrt(0.8 * max(lay.fiber_radius, 1e-30) / bend)
-    return np.clip(np.ceil(dv / dv_max), 1, MAX_SUB).astype(np.int64)
+    rate2 = 2.0 * 2 * math.pi * abs(sh.twist) if sh.twist_pattern == 1 else 0.0
+    f = 2 * math.pi * sh.curl_frequency
+    curl = sh.curl_amplitude * ((f + rate) ** 2 + rate2 if sh.curl_pattern == 0 else f * f)
+    ell = rho * 4.0 * sh.ellipsoid ** 2 / np.maximum(e_lo, 0.25) ** 3
+    bend_v = r * (rate * rate + rate2) + ell + curl
+    bend_l = dv * dv * bend_v + 2.0 * rate * dv * length * sa
+    n = np.ceil(np.sqrt(bend_l / (0.8 * max(lay.fiber_radius, 1e-30))))
+    return np.clip(n, 1, MAX_SUB).astype(np.int64)
 
 
 def segment_bands(sh: Shape, seg: Segment) -> tuple[float, float]:
@@ -512,48 +543,31 @@ def segment_bands(sh: Shape, seg: Segment) -> tuple[float, float]:
     return min(ea, eb), e_hi
 
 
-def curved_fiber_test(sh, lay, seg, ur_O, ur_D, s0, s1, rest_x, rest_y, phase, ring, v_end, e_lo, sA, sB):
-    """Entry parameter of each (ray, fiber) pair over the arc [sA, sB] (broadcast arrays), inf on a miss."""
+def piece_entry(sh, lay, seg, O, D, P0, P1, s_a, s_b, rest_x, rest_y, phase, v_end):
+    """Entry parameter of each (ray, fiber) pair over the chord piece [s_a, s_b] (curved.glsl: piece_entry):
+    the ray seen from the fiber runs from P0.xy - c'(P0) to P1.xy - c'(P1) on a line. inf on a miss."""
     zc = z_cut_unit(seg, v_end)
-    Oz, Dz = ur_O[..., 2], ur_D[..., 2]
-    z0, z1 = _slab(Oz, Dz, -np.inf, zc)
-    a = np.maximum(np.maximum(sA, s0), z0)
-    b = np.minimum(np.minimum(sB, s1), z1)
-    live = (a <= b) & (zc != -np.inf)
-    a = np.where(live, a, 0.0)
-    b = np.where(live, b, 0.0)
-    va, vb = unit_to_v(seg, Oz + a * Dz), unit_to_v(seg, Oz + b * Dz)
-    n = chord_pieces(sh, lay, np.abs(vb - va), ring, e_lo)
-    step = (b - a) / n
-    out = np.full(np.broadcast(a, rest_x).shape, np.inf)
-    c_prev = fiber_center_at(sh, rest_x, rest_y, va, ring, phase)
-    done = ~live
-    for k in range(MAX_SUB):
-        active = ~done & (k < n)
-        if not active.any():
-            break
-        sk = a + k * step
-        sk1 = np.where(k == n - 1, b, sk + step)
-        c_next = fiber_center_at(sh, rest_x, rest_y, unit_to_v(seg, Oz + sk1 * Dz), ring, phase)
-        length = sk1 - sk
-        safe = np.where(length > 0, length, 1.0)
-        q0x = ur_O[..., 0] + sk * ur_D[..., 0] - c_prev[0]
-        q0y = ur_O[..., 1] + sk * ur_D[..., 1] - c_prev[1]
-        dqx = np.where(length > 0, ur_D[..., 0] - (c_next[0] - c_prev[0]) / safe, ur_D[..., 0])
-        dqy = np.where(length > 0, ur_D[..., 1] - (c_next[1] - c_prev[1]) / safe, ur_D[..., 1])
-        e0, e1 = circle_interval(q0x, q0y, dqx, dqy, 0.0, 0.0, lay.fiber_radius)
-        lo, hi = np.maximum(e0, 0.0), np.minimum(e1, length)
-        hit = active & (lo <= hi)
-        out = np.where(hit, sk + lo, out)
-        done |= hit | (k == n - 1)
-        c_prev = c_next
-    return out
+    z0, z1 = _slab(O[..., 2], D[..., 2], -np.inf, zc)
+    lo, hi = np.maximum(s_a, z0), np.minimum(s_b, z1)
+    c0x, c0y = ring_frame_center(sh, rest_x, rest_y, phase, P0)
+    c1x, c1y = ring_frame_center(sh, rest_x, rest_y, phase, P1)
+    q0x, q0y = P0[5] - c0x, P0[6] - c0y
+    q1x, q1y = P1[5] - c1x, P1[6] - c1y
+    length = s_b - s_a
+    safe = np.where(length > 0, length, 1.0)
+    dqx = np.where(length > 0, (q1x - q0x) / safe, 0.0)
+    dqy = np.where(length > 0, (q1y - q0y) / safe, 0.0)
+    e0, e1 = circle_interval(q0x, q0y, dqx, dqy, 0.0, 0.0, lay.fiber_radius)
+    s_in = np.maximum(s_a + e0, lo)
+    s_out = np.minimum(s_a + e1, hi)
+    return np.where((zc != -np.inf) & (s_in <= s_out), s_in, np.inf)
 
 
 def shaped_nearest_segment(sh: Shape, lay: RingLayout, seg: Segment, ur: UnitRays, live: np.ndarray,
                            chunk: int = 2_000_000):
     """Nearest curved-fiber hit of the rays ``live`` in one segment: (s, ring, fiber) arrays, brute force
-    over the same arcs the shader walks (every fiber of a ring over each arc of that ring)."""
+    over the same arcs and chord pieces the shader walks (glsl/fibers/shaped.glsl): every fiber of a ring
+    on each piece of each arc of that ring."""
     O, D, s0, s1 = ur.O[live], ur.D[live], ur.s0[live], ur.s1[live]
     n_rays = len(live)
     best_s = np.full(n_rays, np.inf)
@@ -562,6 +576,7 @@ def shaped_nearest_segment(sh: Shape, lay: RingLayout, seg: Segment, ur: UnitRay
     e_lo, e_hi = segment_bands(sh, seg)
     o2, d2 = O[:, :2], D[:, :2]
     a2 = (d2 ** 2).sum(1)
+    sa = np.sqrt(a2)
     with np.errstate(divide="ignore", invalid="ignore"):
         s_mid = np.where(a2 > 0, -(o2 * d2).sum(1) / a2, s0)
     once_seen = np.zeros(n_rays, bool)
@@ -576,21 +591,54 @@ def shaped_nearest_segment(sh: Shape, lay: RingLayout, seg: Segment, ur: UnitRay
         twice = ~stopped & (ix0 <= ix1) & ~once_seen
         once = ~stopped & ~twice
         once_seen |= once
-        arcs = [(np.where(twice, ox0, ox0), np.where(twice, ix0, s_mid)),
-                (np.where(twice, ix1, s_mid), np.where(twice, ox1, ox1))]
+        arcs = [(ox0, np.where(twice, ix0, s_mid)), (np.where(twice, ix1, s_mid), ox1)]
         j = np.arange(lay.n[i])
         rest_x, rest_y, v_end = fiber_center(lay, seg.guide, np.full_like(j, i), j)
         phase = fiber_randoms(lay, seg.guide, np.full_like(j, i), j, CH_CURL)
-        for sA, sB in arcs:
+        for side, (sA, sB) in enumerate(arcs):
             sA = np.maximum(sA, s0)
             sB = np.minimum(sB, s1)
             rows = np.nonzero(~stopped & (sA <= sB))[0]
-            step = max(1, chunk // max(1, len(j) * MAX_SUB))
-            for c in range(0, len(rows), step):
-                r = rows[c:c + step]
-                s = curved_fiber_test(sh, lay, seg, O[r, None, :], D[r, None, :], s0[r, None], s1[r, None],
-                                      rest_x[None], rest_y[None], phase[None], i, v_end[None], e_lo,
-                                      sA[r, None], sB[r, None])
+            step_rows = max(1, chunk // max(1, len(j)))
+            for c in range(0, len(rows), step_rows):
+                r = rows[c:c + step_rows]
+                a, b = sA[r], sB[r]
+                Or, Dr = O[r], D[r]
+                e_lo_arc = e_lo
+                if sh.ellipsoid > 0:
+                    # shaped.glsl: the arc's heights bound the scale tighter; the band shrinks to match
+                    va, vb = unit_to_v(seg, Or[:, 2] + a * Dr[:, 2]), unit_to_v(seg, Or[:, 2] + b * Dr[:, 2])
+                    ea, eb = shape_scale(sh, va), shape_scale(sh, vb)
+                    e_lo_arc = np.minimum(ea, eb)
+                    e_hi_arc = np.where((np.minimum(va, vb) <= 0.5) & (np.maximum(va, vb) >= 0.5), 1.0,
+                                        np.maximum(ea, eb))
+                    t_in = np.maximum(0.0, e_lo_arc * (lay.rho[i] - lay.max_dr[i]) - grow)
+                    t_out = e_hi_arc * (lay.rho[i] + lay.max_dr[i]) + grow
+                    to0, to1 = circle_interval(o2[r, 0], o2[r, 1], d2[r, 0], d2[r, 1], 0.0, 0.0, t_out)
+                    ti0, ti1 = circle_interval(o2[r, 0], o2[r, 1], d2[r, 0], d2[r, 1], 0.0, 0.0, t_in)
+                    before = side == 0
+                    a = np.maximum(a, to0 if before else ti1)
+                    b = np.minimum(b, ti0 if before else to1)
+                    keep = a <= b
+                    r, a, b, Or, Dr, e_lo_arc = r[keep], a[keep], b[keep], Or[keep], Dr[keep], e_lo_arc[keep]
+                    if not len(r):
+                        continue
+                Pa = ring_point(sh, seg, Or, Dr, a, i)
+                Pb = ring_point(sh, seg, Or, Dr, b, i)
+                n = chord_pieces(sh, lay, b - a, np.abs(Pb[0] - Pa[0]), sa[r], i, e_lo_arc)
+                step = (b - a) / n
+                s = np.full((len(r), len(j)), np.inf)
+                P0, s_k = Pa, a
+                for k in range(int(n.max())):
+                    last = k == n - 1
+                    s_k1 = np.where(last, b, a + (k + 1) * step)
+                    P1 = tuple(np.where(last, x, y) for x, y in zip(Pb, ring_point(sh, seg, Or, Dr, s_k1, i)))
+                    col = lambda x: x[:, None]  # noqa: E731
+                    hit = piece_entry(sh, lay, seg, Or[:, None, :], Dr[:, None, :], tuple(map(col, P0)),
+                                      tuple(map(col, P1)), col(s_k), col(s_k1), rest_x[None], rest_y[None],
+                                      phase[None], v_end[None])
+                    s = np.where(col(k < n), np.minimum(s, hit), s)
+                    P0, s_k = P1, s_k1
                 k = np.argmin(s, axis=1)
                 sk = s[np.arange(len(r)), k]
                 better = sk < best_s[r]   # rings come in order; within a ring argmin takes the lower j

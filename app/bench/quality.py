@@ -3,8 +3,10 @@
 Sections (each a Markdown table, a CSV and pictures in DIR):
   traversal  default preset at 640x360: ms per frame per mode, fiber tests per covered pixel next to the
              rings the ray crosses (the floor an ideal traversal cannot beat), brute / exact ratio
-  shapes     straight, curled, twisted, combined fibers x fast, exact, brute: ms per frame, tests per
-             covered pixel, pixels whose fiber differs from brute
+  shapes     straight, curled, twisted, combined fibers (and the other twist and curl patterns) x fast,
+             exact at 640x360 and 1280x720, timed round-robin: ms per frame and tests per covered pixel
+             beside their ratio to straight, pixels whose fiber differs from brute; the sliders' extremes
+             (loop run-out, NaN, exact == brute)
   antialias  none, supersample 2 and 3, MSAA 2 and 4: ms per frame, and stability: pixels whose fiber
              id or colour changes when the camera moves a tenth of a pixel
   shadows    self-shadowing off, density estimate, traced shadow ray: cost and difference
@@ -103,31 +105,124 @@ SHAPES = {
     "combined": {"shape.curl_amplitude": 0.3, "shape.twist": 0.8, "shape.twist_pattern": "alternating",
                  "shape.ellipsoid": 0.6, "scene.segments": 4},
 }
+# the other twist and curl patterns and the ellipsoid, measured at the first size only
+PATTERNS = {
+    "twist ramped": {"shape.twist": 1.0, "shape.twist_pattern": "ramped"},
+    "twist alternating": {"shape.twist": 1.0, "shape.twist_pattern": "alternating"},
+    "curl wave": {"shape.curl_amplitude": 0.35, "shape.curl_frequency": 6.0, "shape.curl_pattern": "wave"},
+    "ellipsoid": {"shape.ellipsoid": 0.8, "scene.segments": 4},
+}
+# the ends of the sliders: checked (loop run-out, NaN, exact == brute) on a smaller image, not compared
+EXTREMES = {
+    "twist +8 uniform": {"shape.twist": 8.0},
+    "twist -8 ramped": {"shape.twist": -8.0, "shape.twist_pattern": "ramped"},
+    "twist +8 alternating": {"shape.twist": 8.0, "shape.twist_pattern": "alternating"},
+    "curl 0.5 x 64 helix": {"shape.curl_amplitude": 0.5, "shape.curl_frequency": 64.0},
+    "curl 0.5 x 64 wave": {"shape.curl_amplitude": 0.5, "shape.curl_frequency": 64.0, "shape.curl_pattern": "wave"},
+    "ellipsoid 1": {"shape.ellipsoid": 1.0, "scene.segments": 4},
+    "all at once": {"shape.twist": -8.0, "shape.twist_pattern": "ramped", "shape.curl_amplitude": 0.5,
+                    "shape.curl_frequency": 64.0, "shape.ellipsoid": 1.0, "scene.segments": 4},
+}
+SHAPE_SIZES = ((640, 360), (1280, 720))
 
 
 def shapes_section(b: Bench, size, out: Path, bar) -> list[dict]:
-    rows = []
-    sheet = []
-    for name, values in SHAPES.items():
-        p = Params({"scene.count": 8, **values})
-        scene, cam = b.scene(p)
-        brute_ids = b.renderer.render(p, cam, size, outputs=("ids",), mode="brute").ids
-        for mode in ("fast", "exact", "brute"):
-            saved = b.reps
-            b.reps = saved if mode != "brute" else max(1, saved // 5)
-            ms, cv = b.draw_ms(p, cam, size, mode)
-            b.reps = saved
-            f = b.renderer.render(p, cam, size, outputs=("ids", "cost"), mode=mode)
-            covered = f.cost[..., 2] > 0
-            hit = f.hit | (brute_ids[..., 0] > 0)
-            differ = np.any(f.ids[..., :3] != brute_ids[..., :3], -1) & hit
-            rows.append({"shape": name, "mode": mode, "ms": ms, "cv": cv,
-                         "tests_per_px": float(f.cost[..., 0][covered].mean()),
-                         "differ_from_brute_pct": 100.0 * differ.sum() / max(1, hit.sum())})
+    """Curved fibers against straight ones, timed round-robin in one process (a frame of each shape in
+    turn, so load on the machine falls on all of them alike): ms per frame and fiber tests per covered
+    pixel, each beside its ratio to straight fibers at the same size and mode; the loop budget canary,
+    NaN, and the pixels whose fiber differs from brute force (rendered once per shape and size)."""
+    sizes = SHAPE_SIZES if size == (640, 360) else (size, (2 * size[0], 2 * size[1]))
+    rows, sheet, costs = [], [], []
+    for k, sz in enumerate(sizes):
+        shapes = {**SHAPES, **(PATTERNS if k == 0 else {})}
+        runs = {}
+        for name, values in shapes.items():
+            p = Params({"scene.count": 8, **values})
+            scene = build_scene(p)
+            r = Renderer(b.ctx, b.renderer.programs)
+            r.set_scene(scene)
+            runs[name] = (p, r, Camera.from_params(p, scene))
+        for mode in ("fast", "exact"):
+            timing = _round_robin(b, runs, sz, mode)
+            for name, (p, r, cam) in runs.items():
+                f = r.render(p, cam, sz, outputs=("ids", "cost", "iters", "geom"), mode=mode)
+                covered = f.cost[..., 2] > 0
+                rows.append({"size": f"{sz[0]}x{sz[1]}", "shape": name, "mode": mode,
+                             "ms": timing[name][0], "cv": timing[name][1],
+                             "tests_per_px": float(f.cost[..., 0][covered].mean()),
+                             "max_loop_iters": float(f.iters.max()),
+                             "nan": bool(not np.isfinite(f.geom).all()), "_ids": f.ids, "_hit": f.hit})
+                if mode == "exact" and k == 0:
+                    sheet.append(r.render(p, cam, sz).color)
+                    costs.append(cost_image(f.cost, vmax=60.0))
+        for name, (p, r, cam) in runs.items():
+            brute = r.render(p, cam, sz, outputs=("ids",), mode="brute")
+            for row in rows:
+                if row["shape"] == name and row["size"] == f"{sz[0]}x{sz[1]}" and "_ids" in row:
+                    hit = row.pop("_hit") | brute.hit
+                    differ = np.any(row.pop("_ids")[..., :3] != brute.ids[..., :3], -1) & hit
+                    row["differ_from_brute_pct"] = 100.0 * differ.sum() / max(1, hit.sum())
+            r.release_targets()
             bar.update()
-        sheet.append(b.renderer.render(p, cam, size).color)
-    Image.fromarray(np.concatenate(sheet, 1)).save(out / "shapes.png")
+    for row in rows:
+        base = next(x for x in rows if x["shape"] == "straight" and x["size"] == row["size"]
+                    and x["mode"] == row["mode"])
+        row["ms_vs_straight"] = row["ms"] / base["ms"]
+        row["tests_vs_straight"] = row["tests_per_px"] / base["tests_per_px"]
+        row["loop_run_out"] = row["max_loop_iters"] >= 65_535
+    rows += _shape_extremes(b, (size[0] // 2, size[1] // 2))
+    bar.update()
+    _save_sheet(sheet, out / "shapes.png")
+    _save_sheet(costs, out / "shapes_cost.png")
+    order = ["size", "shape", "mode", "ms", "cv", "ms_vs_straight", "tests_per_px", "tests_vs_straight",
+             "differ_from_brute_pct", "max_loop_iters", "loop_run_out", "nan"]
+    return [{k: r[k] for k in order if k in r} for r in rows]
+
+
+def _round_robin(b: Bench, runs: dict, size, mode: str) -> dict:
+    """(median ms, cv) per run: two warm-up frames each, then b.reps rounds of one frame of every run."""
+    samples = {name: [] for name in runs}
+    for rep in range(-2, b.reps):
+        for name, (p, r, cam) in runs.items():
+            t = time_frames(lambda: r.render(p, cam, size, outputs=("draw",), mode=mode), warmup=0, reps=1,
+                            sync=b.ctx.finish)
+            if rep >= 0:
+                samples[name] += t.samples_ms
+    return {name: (float(np.median(s)), float(np.std(s) / np.mean(s))) for name, s in samples.items()}
+
+
+def _shape_extremes(b: Bench, size) -> list[dict]:
+    """The sliders' ends: exact and brute once each, one container seen at a slant (every ray climbs)."""
+    rows = []
+    for name, values in EXTREMES.items():
+        p = Params({"scene.count": 3, **values})
+        scene = build_scene(p)
+        r = Renderer(b.ctx, b.renderer.programs)
+        r.set_scene(scene)
+        cam = Camera.from_params(p.replace(**{"camera.elevation": 35.0}), scene)
+        exact = r.render(p, cam, size, outputs=("ids", "cost", "iters", "geom"), mode="exact")
+        brute = r.render(p, cam, size, outputs=("ids", "iters"), mode="brute")
+        hit = exact.hit | brute.hit
+        differ = np.any(exact.ids[..., :3] != brute.ids[..., :3], -1) & hit
+        covered = exact.cost[..., 2] > 0
+        it = max(float(exact.iters.max()), float(brute.iters.max()))   # the most one draw ran (MAX blend)
+        rows.append({"size": f"{size[0]}x{size[1]}", "shape": f"extreme: {name}", "mode": "exact",
+                     "tests_per_px": float(exact.cost[..., 0][covered].mean()),
+                     "differ_from_brute_pct": 100.0 * differ.sum() / max(1, hit.sum()),
+                     "max_loop_iters": it, "loop_run_out": it >= 65_535,
+                     "nan": bool(not np.isfinite(exact.geom).all())})
+        r.release_targets()
     return rows
+
+
+def _save_sheet(images: list, path: Path, per_row: int = 4) -> None:
+    """Images side by side, ``per_row`` to a row (blank tiles pad the last one)."""
+    if not images:
+        return
+    blank = np.zeros_like(images[0])
+    rows = [images[i:i + per_row] for i in range(0, len(images), per_row)]
+    rows = [np.concatenate(r + [blank] * (per_row - len(r)), 1) for r in rows]
+    Image.fromarray(np.concatenate(rows, 0)).save(path)
 
 
 AA = {"none": {}, "supersample 2": {"quality.supersample": 2}, "supersample 3": {"quality.supersample": 3},
@@ -240,7 +335,7 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     b = Bench(reps=3 if args.quick else 10)
     size = (320, 180) if args.quick else (640, 360)
-    steps = {"traversal": 3, "shapes": 12, "antialias": 5, "shadows": 3, "hash": 2}
+    steps = {"traversal": 3, "shapes": 13, "antialias": 5, "shadows": 3, "hash": 2}
     command = " ".join(["python -m app.bench.quality", *args.sections] + (["--quick"] if args.quick else []))
     header = (f"Date {date.today()}, commit {_commit()}, `{command}`. "
               f"Machine: {platform.processor() or platform.machine()}, {b.gl.renderer}, {b.gl.version}. "

@@ -42,11 +42,12 @@ MAX_RINGS = 64
 # batch runs the loops of every branch taken, and a loop as often as its longest lane needs.
 LOOP_CAP = 65_535
 BRUTE_CHUNK = 60_000              # fibers per brute-force draw: stays under LOOP_CAP with 64 rings
-MAX_SUB = 16                      # chord pieces per curved-fiber test (glsl/fibers/curved.glsl)
-# A ray visits a ring of curved fibers on two of four arcs (front or first half in the ring loop, second
-# half or back in the loops after it), so a batch whose lanes differ may visit it on all four. Each test is
-# one pass of the candidate loop plus up to MAX_SUB + 1 of the chord loop; 16 passes per ring pay for the
-# ring, arc and canary loops.
+MAX_SUB = 16                      # chord pieces per arc of a curved-fiber ring (glsl/fibers/curved.glsl)
+# A ray visits a ring of curved fibers on one or two of three arcs (the first arc, then the second half or
+# the back: glsl/fibers/shaped.glsl), so a batch whose lanes differ may visit it on all three; brute force
+# tests every fiber of its chunk on each of up to MAX_SUB chord pieces of an arc, one pass of the candidate
+# loop each plus each piece's final test. 16 passes per ring pay for the band, arc, piece and canary loops
+# (the chunk is the one the old per-fiber chord loop used, which leaves the piece loops ample room).
 BRUTE_CHUNK_SHAPED = (LOOP_CAP - 16 * MAX_RINGS) // (4 * (MAX_SUB + 2))
 TWIST_PATTERNS = {"uniform": 0, "ramped": 1, "alternating": 2}
 CURL_PATTERNS = {"helix": 0, "wave": 1}
@@ -208,11 +209,7 @@ class Renderer:
     def proxy_program(self, p: Params, mode: str, cost: bool, supersample: int = 1,
                       msaa: int = 0) -> moderngl.Program:
         """The proxies strategy's program: one traversal per proxy fragment (stages/container.frag)."""
-        defines = {"TRAVERSAL": MODES[mode], "MAX_RINGS": MAX_RINGS, "MAX_SUB": MAX_SUB,
-                   "HASH_THESIS": int(p["fibers.hash"] == "thesis"), "COST_PASS": int(cost),
-                   "SHAPED": int(is_shaped(p)), "SHADING_MODEL": SHADING_MODELS[p["look.model"]],
-                   "SHADOW_MODE": SHADOW_MODES[p["look.self_shadow"]], "SUPERSAMPLE": supersample,
-                   "MSAA_SAMPLES": msaa}
+        defines = {**model_defines(p, mode, cost), "SUPERSAMPLE": supersample, "MSAA_SAMPLES": msaa}
         return self.programs.get(self.ctx, "stages/container.vert", "stages/container.frag", defines)
 
     def compile_programs(self, p: Params, mode: str, cost: bool = False, antialias: bool = False) -> None:
@@ -230,10 +227,7 @@ class Renderer:
 
     def program(self, p: Params, mode: str, cost: bool, stage: str = "walk") -> moderngl.Program:
         """The walk strategy's pass (``stage`` "walk") or the shading of its winners ("resolve")."""
-        defines = {"TRAVERSAL": MODES[mode], "MAX_RINGS": MAX_RINGS, "MAX_SUB": MAX_SUB, "WALK_CAP": WALK_CAP,
-                   "HASH_THESIS": int(p["fibers.hash"] == "thesis"), "COST_PASS": int(cost),
-                   "SHAPED": int(is_shaped(p)), "SHADING_MODEL": SHADING_MODELS[p["look.model"]],
-                   "SHADOW_MODE": SHADOW_MODES[p["look.self_shadow"]]}
+        defines = {**model_defines(p, mode, cost), "WALK_CAP": WALK_CAP}
         return self.programs.get(self.ctx, "stages/fullscreen_depth.vert", f"stages/{stage}.frag", defines)
 
     def _set_uniforms(self, prog: moderngl.Program, p: Params, cam: Camera, size, offset) -> None:
@@ -609,10 +603,10 @@ LOOP_HEADROOM = 1024
 def candidate_caps(p: Params, scene: Scene) -> tuple[np.ndarray, int]:
     """Per ring, the most fibers one piece (arc) of a ray can test in fast and exact modes, and the loop
     passes one test costs. Mirrors the candidate windows of glsl/fibers/traverse.glsl: a piece of ring i
-    runs between the ring's outer circle and its inner circle or the ray's closest approach to the axis,
-    which is no nearer than the inner circle (of the first ring crossed once, for curved bands); seen from
-    the axis it sweeps at most acos(inner / outer). The window adds the ring's reach on either side and,
-    for curved fibers, the twist over the segment."""
+    runs between the ring's outer circle and its inner circle or the ray's closest approach to the axis;
+    seen from the axis it sweeps at most acos(inner / outer). The window adds the ring's reach on either
+    side. Curved fibers: per ring the loop passes of one arc, all its chord pieces included, and 1
+    (``_shaped_arc_passes``)."""
     lay = reference.ring_layout(p)
     eps_angle = EPS_ANGLE
     K = lay.rings
@@ -621,37 +615,59 @@ def candidate_caps(p: Params, scene: Scene) -> tuple[np.ndarray, int]:
         widen = 2.0 * (lay.reach + eps_angle)
         per_test = 1
     else:
-        sh = reference.Shape.from_params(p)
-        seg = scene.segments.astype(np.float64)
-        axis = seg[:, 4:7] - seg[:, 0:3]
-        h = np.linalg.norm(axis, axis=1)
-        ez = axis / h[:, None]
-
-        def slope(n):                                   # container.glsl: joint_slope
-            c = np.abs((n * ez).sum(1))
-            return np.sqrt(np.maximum(0.0, 1.0 - c * c)) / np.maximum(c, 1e-6)
-
-        r_bound = np.maximum(seg[:, 3], seg[:, 7])
-        z_lo, z_hi = -r_bound * slope(seg[:, 8:11]), h + r_bound * slope(seg[:, 12:15])
-        v_lo = seg[:, 11] + (seg[:, 15] - seg[:, 11]) * z_lo / h   # the guide parameter over the slab
-        v_hi = seg[:, 11] + (seg[:, 15] - seg[:, 11]) * z_hi / h
-        e_lo = float(np.min(np.minimum(reference.shape_scale(sh, v_lo), reference.shape_scale(sh, v_hi))))
-        grow = lay.fiber_radius + sh.curl_amplitude + 1e-6      # traverse.glsl: ring_band
-        inner = np.maximum(0.0, e_lo * (lay.rho - lay.max_dr) - grow)
-        outer = (lay.rho + lay.max_dr) + grow                   # e_hi <= 1
-        dv = np.abs(v_hi - v_lo) * (2.0 * np.maximum(np.abs(v_lo), np.abs(v_hi)) if sh.twist_pattern == 1
-                                    else 1.0)
-        twist = 2.0 * math.pi * abs(sh.twist) * float(dv.max())
-        d_min = e_lo * (lay.rho - lay.max_dr)           # traverse.glsl: shaped_reach
-        r = lay.fiber_radius + sh.curl_amplitude
-        with np.errstate(divide="ignore", invalid="ignore"):
-            disc = np.where(d_min > r, np.arcsin(np.minimum(1.0, r / d_min)), math.pi)
-        widen = twist + 2.0 * (lay.max_dphi + disc + eps_angle)
-        per_test = 1 + MAX_SUB + 1                      # the candidate loop's pass, the chord loop's
+        return _shaped_arc_passes(p, scene), 1
     closest = np.minimum.accumulate(inner)              # no ring deeper than the ray's closest approach
     sweep = np.arccos(np.clip(closest / outer, 0.0, 1.0)) + 1e-3
     caps = np.minimum(lay.n, np.floor((sweep + widen) / lay.dphi).astype(np.int64) + 2)
     return caps, per_test
+
+
+def _shaped_arc_passes(p: Params, scene: Scene) -> np.ndarray:
+    """Curved fibers (glsl/fibers/shaped.glsl): per ring, the most loop passes one visit of an arc takes,
+    all of the ring's fibers in the draw. The arc is cut into at most MAX_SUB chord pieces; a piece tests
+    the slots within the ring's reach of the angles its chord sweeps in the ring's frame, which turns with
+    the twist. Seen from the axis an arc of the untwisted path sweeps at most acos(inner / outer); the
+    twist adds what it turns over the arc, so all pieces together sweep at most that plus the twist over
+    the segment, and each piece adds its two reaches. A piece turns at most sqrt(0.8 r_f / r) with the
+    twist (the chord rule, curved.glsl), or a MAX_SUB-th of the segment's twist where the rule is capped;
+    a chord that sweeps more than 2.5 radians takes every fiber of the ring."""
+    lay = reference.ring_layout(p)
+    sh = reference.Shape.from_params(p)
+    seg = scene.segments.astype(np.float64)
+    axis = seg[:, 4:7] - seg[:, 0:3]
+    h = np.linalg.norm(axis, axis=1)
+    ez = axis / h[:, None]
+
+    def slope(n):                                   # container.glsl: joint_slope
+        c = np.abs((n * ez).sum(1))
+        return np.sqrt(np.maximum(0.0, 1.0 - c * c)) / np.maximum(c, 1e-6)
+
+    r_bound = np.maximum(seg[:, 3], seg[:, 7])
+    z_lo, z_hi = -r_bound * slope(seg[:, 8:11]), h + r_bound * slope(seg[:, 12:15])
+    v_lo = seg[:, 11] + (seg[:, 15] - seg[:, 11]) * z_lo / h   # the guide parameter over the slab
+    v_hi = seg[:, 11] + (seg[:, 15] - seg[:, 11]) * z_hi / h
+    e_lo = float(np.min(np.minimum(reference.shape_scale(sh, v_lo), reference.shape_scale(sh, v_hi))))
+    grow = lay.fiber_radius + sh.curl_amplitude + 1e-6      # shaped.glsl: ring_band
+    inner = np.maximum(0.0, e_lo * (lay.rho - lay.max_dr) - grow)
+    outer = (lay.rho + lay.max_dr) + grow                   # e_hi <= 1
+    closest = np.minimum.accumulate(inner)              # no ring deeper than the ray's closest approach
+    sweep = np.arccos(np.clip(closest / outer, 0.0, 1.0)) + 1e-3
+    dv = np.abs(v_hi - v_lo) * (2.0 * np.maximum(np.abs(v_lo), np.abs(v_hi)) if sh.twist_pattern == 1
+                                else 1.0)
+    twist = 2.0 * math.pi * abs(sh.twist) * float(dv.max()) * 1.001
+    r_chord = lay.rho + lay.max_dr + lay.fiber_radius + sh.curl_amplitude   # curved.glsl: chord_pieces
+    piece_turn = np.minimum(twist, np.maximum(np.sqrt(0.8 * max(lay.fiber_radius, 1e-30) / r_chord) * 1.001,
+                                              twist / MAX_SUB))
+    d_min = e_lo * (lay.rho - lay.max_dr)           # shaped.glsl: shaped_reach
+    r = lay.fiber_radius + sh.curl_amplitude
+    with np.errstate(divide="ignore", invalid="ignore"):
+        disc = np.where(d_min > r, np.arcsin(np.minimum(1.0, r / d_min)), math.pi)
+    reach = lay.max_dphi + disc + EPS_ANGLE
+    per_piece = np.floor(2.0 * reach / lay.dphi).astype(np.int64) + 2
+    swept = np.floor((sweep + twist) / lay.dphi).astype(np.int64) + MAX_SUB * per_piece
+    whole = sweep + piece_turn > 2.5 - 1e-3                 # shaped.glsl: the near-axis chord takes all
+    tests = np.where(whole, MAX_SUB * lay.n, np.minimum(MAX_SUB * lay.n, swept))
+    return tests + 2 * MAX_SUB + 1          # each piece's header and its candidate loop's final test
 
 
 def _loop_budget(p: Params, rays: int, walks: int = 0) -> int:
@@ -680,16 +696,17 @@ def draw_ranges(p: Params, scene: Scene, mode: str, rays: int = 1, walks: int = 
     """Ranges [start, end) of a container's flat fiber numbering, one draw each, such that no SIMD batch of
     fragments passes llvmpipe's loop budget: it would stop every loop in silence and lose fibers.
 
-    Brute force tests each fiber of its chunk once (straight) or on each arc (curved). Fast and exact test
-    a ring's candidates on each piece of the ray in that ring, at most ``candidate_caps`` of them. A batch
+    Brute force tests each fiber of its chunk once (straight) or on each chord piece of each arc (curved).
+    Fast and exact test a ring's candidates on each piece of the ray in that ring, at most
+    ``candidate_caps`` of them (curved: the loop passes of one arc, all its chord pieces included). A batch
     visits a straight ring on its front and back pieces, and the deepest pieces of its lanes (any ring, the
-    costliest one bounds them); a curved ring on up to four arcs. Rings are packed into draws greedily, a
+    costliest one bounds them); a curved ring on up to three arcs (glsl/fibers/shaped.glsl). Rings are packed into draws greedily, a
     ring split when it alone is too much. Every bundled layout needs one draw; 64 rings of 0.01 degree
     fibers, or curled fibers whose reach is the whole ring, need several, and the depth test keeps the
-    nearest hit across them as it does in brute mode. The bound holds with the loops after the ring loop in
-    ring order (uRingOrder), which ``Renderer._draw`` sets whenever there is more than one draw or
-    ``needs_ring_order``. ``rays``: traversals per invocation (containers per draw times rays per
-    container); ``walks``: walks through the container hierarchy per invocation."""
+    nearest hit across them as it does in brute mode. The bound holds with the loops after the ring loop
+    (curved: the arcs) in ring order (uRingOrder), which the renderer sets whenever there is more than one
+    draw or ``needs_ring_order``. ``rays``: traversals per invocation; ``walks``: walks through the
+    container hierarchy per invocation (the walk strategy)."""
     lay = reference.ring_layout(p)
     total = lay.fibers_per_container
     if mode == "brute":
@@ -700,19 +717,31 @@ def draw_ranges(p: Params, scene: Scene, mode: str, rays: int = 1, walks: int = 
         return [(start, min(total, start + chunk)) for start in range(0, total, chunk)]
     caps, per_test = candidate_caps(p, scene)
     budget = _loop_budget(p, rays, walks)
-    visits, deepest = (2, 2) if not is_shaped(p) else (4, 0)    # per ring; per draw, at its costliest ring
-    if (visits + deepest) * per_test > budget:
+    shaped = is_shaped(p)
+    # per ring: arcs a batch may visit it on; per draw: deepest pieces, at the draw's costliest ring
+    visits, deepest = (2, 2) if not shaped else (3, 0)
+
+    def cost(i: int, m: int) -> int:
+        """Loop passes of one visit of ring i with m of its fibers in the draw."""
+        if shaped:      # every piece tests at most the share, and pays its header and final test
+            return min(int(caps[i]), MAX_SUB * (m + 2) + 1)
+        return per_test * min(m, int(caps[i]))
+
+    if (visits + deepest) * cost(0, 1) > budget:
         raise ValueError(f"{rays} traversals per fragment leave no loop budget for one fiber test")
     ranges, start, used, top = [], 0, 0, 0                      # top: the open draw's costliest ring
     for i in range(lay.rings):
         pos, left = int(lay.first[i]), int(lay.n[i])
         while left > 0:
-            tests = per_test * min(left, int(caps[i]))
+            tests = cost(i, left)
             if used + visits * tests + deepest * max(top, tests) <= budget:
                 used, top, pos, left = used + visits * tests, max(top, tests), pos + left, 0
                 continue
             # the fibers of this ring that still fit
-            fit = (budget - used - deepest * top) // ((visits + deepest) * per_test)
+            if shaped:
+                fit = ((budget - used) // visits - 2 * MAX_SUB - 1) // MAX_SUB
+            else:
+                fit = (budget - used - deepest * top) // ((visits + deepest) * per_test)
             if fit > 0:
                 pos, left = pos + fit, left - fit
             if pos > start:
@@ -720,6 +749,20 @@ def draw_ranges(p: Params, scene: Scene, mode: str, rays: int = 1, walks: int = 
             start, used, top = pos, 0, 0
     ranges.append((start, total))
     return ranges
+
+
+def model_defines(p: Params, mode: str, cost: bool) -> dict[str, int]:
+    """The defines of the fiber model and the traversal, the same for either visibility strategy."""
+    return {"TRAVERSAL": MODES[mode], "MAX_RINGS": MAX_RINGS, "MAX_SUB": MAX_SUB,
+            "HASH_THESIS": int(p["fibers.hash"] == "thesis"), "COST_PASS": int(cost),
+            "SHAPED": int(is_shaped(p)), "SHAPE_CURL": shape_curl_define(p),
+            "SHAPE_ELLIPSOID": int(p["shape.ellipsoid"] > 0), "SHAPE_TWIST": int(p["shape.twist"] != 0),
+            "SHADING_MODEL": SHADING_MODELS[p["look.model"]], "SHADOW_MODE": SHADOW_MODES[p["look.self_shadow"]]}
+
+
+def shape_curl_define(p: Params) -> int:
+    """What the shaped traversal builds in for the curl (glsl/fibers/shape.glsl): 0 none, 1 helix, 2 wave."""
+    return 0 if p["shape.curl_amplitude"] <= 0 else 1 + CURL_PATTERNS[p["shape.curl_pattern"]]
 
 
 def is_shaped(p: Params) -> bool:

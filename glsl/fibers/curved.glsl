@@ -1,13 +1,20 @@
-// curved.glsl: ray against one curved fiber (curl, twist, ellipsoid) over one arc of the ray.
-//   float curved_fiber_test(Segment seg, UnitRay ur, vec2 rest, float curlPhase, int ring, float vEnd,
-//                           float sA, float sB, out int kind)
+// curved.glsl: a ray against curved fibers (curl, twist, ellipsoid), piece by piece, in the ring's frame.
+//   int   chord_pieces(float L, float dv, float sa, int ring, float eLo)   pieces for one arc of the ray
+//   float piece_entry(Segment seg, FiberRay fr, RingPoint P0, RingPoint P1, float invLen, vec4 curlStep,
+//                     vec2 rest, float curlPhase, float vEnd, out int kind)
 // A curved fiber is the set of points whose horizontal (unit-space) distance to its centre line c(v) is
-// at most fiber_radius. Over the arc [sA, sB] (where the ray is inside the fiber's ring band) the ray's
-// height runs over [va, vb]; that stretch is cut into n pieces short enough that the centre line is
-// within a tenth of a fiber radius of its chord, and each piece is solved exactly against the chord (a
-// moving circle: the same stable quadratic as a straight fiber). The first piece with a hit wins.
-// The result depends only on (ray, fiber, arc), never on the traversal mode, so exact equals brute.
-// Twin: app/reference.py (curved_fiber_test).
+// at most fiber_radius. The traversal looks at the ray in the frame that turns with the ring's twist
+// (shape.glsl): there a twisted fiber is straight and the ray turns about the axis instead. An arc of the
+// ray (the stretch inside one ring's band) is cut into pieces, the same pieces for every fiber of the
+// ring: within a piece the ray's point p(s) and the fiber's centre c'(v(s)) both run along their chords,
+// so the ray seen from the fiber is a point moving on a line and the test is the stable quadratic of a
+// straight fiber. The result depends only on (ray, ring, arc, fiber), never on the traversal mode, so
+// exact equals brute.
+// Chord rule: the ray seen from the fiber, q(s) = p(s) - c'(v(s)), stays within a tenth of a fiber radius
+// of its chord when a piece is no longer than sqrt(0.8 r / |q''|); |q''| is bounded from the ray's rate
+// of climb, dv/ds, which is what makes the rotation, the curl and the ellipsoid bend: a ray across the
+// fibers (dv/ds near 0) needs one piece, a ray along them up to MAX_SUB.
+// Twin: app/reference.py (chord_pieces, piece_entry).
 
 #include "fibers/shape.glsl"
 
@@ -15,51 +22,50 @@
 #define MAX_SUB 16
 #endif
 
-// Chord pieces needed over a height span dv so the chord stays within 0.1 fiber radius of the curve.
-int chord_pieces(float dv, int ring, float eLo) {
+// Pieces for an arc of length L (ray parameter) that climbs dv in guide parameter; sa = |D.xy|.
+// With w = dv / L:  |q''| <= w^2 (r (tau'^2 + tau'') + rho E'' + curl'') + 2 tau' w sa, where r bounds the
+// ray's distance to the axis on the arc, tau' and tau'' the twist's rates (per unit v), rho E'' the
+// ellipsoid's bend (E >= max(eLo, 1/4), as the test has always assumed) and curl'' the curl's.
+int chord_pieces(float L, float dv, float sa, int ring, float eLo) {
     float rho = uRingA[ring].x + uRingB[ring].x;
-    float curl = uCurlAmplitude * pow(TWO_PI * uCurlFrequency, 2.0);
-    float twistRate = TWO_PI * abs(uTwist) * (uTwistPattern == 1 ? 2.0 : 1.0);
-    float twist = rho * twistRate * twistRate;
-    float ell = rho * 4.0 * uEllipsoid * uEllipsoid / pow(max(eLo, 0.25), 3.0);
-    float bend = curl + twist + ell;          // a bound on |c''(v)|
-    if (bend <= 0.0) return 1;
-    float dvMax = sqrt(0.8 * max(uFiberRadius, 1e-30) / bend);
-    return clamp(int(ceil(dv / dvMax)), 1, MAX_SUB);
+    float r = rho + uFiberRadius + uCurlAmplitude;
+    float rate = TWO_PI * abs(uTwist) * (uTwistPattern == 1 ? 2.0 : 1.0);
+    float rate2 = uTwistPattern == 1 ? 2.0 * TWO_PI * abs(uTwist) : 0.0;
+    float f = TWO_PI * uCurlFrequency;
+    float curl = uCurlAmplitude * (uCurlPattern == 0 ? (f + rate) * (f + rate) + rate2 : f * f);
+    float ell = rho * 4.0 * uEllipsoid * uEllipsoid / (max(eLo, 0.25) * max(eLo, 0.25) * max(eLo, 0.25));
+    float bendV = r * (rate * rate + rate2) + ell + curl;
+    // L^2 |q''| without dividing by L
+    float bendL = dv * dv * bendV + 2.0 * rate * dv * L * sa;
+    float n = ceil(sqrt(bendL / (0.8 * max(uFiberRadius, 1e-30))));
+    return int(clamp(n, 1.0, float(MAX_SUB)));
 }
 
-float curved_fiber_test(Segment seg, UnitRay ur, vec2 rest, float curlPhase, int ring, float vEnd,
-                        float eLo, float sA, float sB, out int kind) {
-    gTests++;
-    kind = 0;
-    float zc = z_cut_unit(seg, vEnd);
-    if (zc == -INF) return INF;
-    vec2 zs = slab(ur.O.z, ur.D.z, -INF, zc);
-    float a = max(max(sA, ur.s0), zs.x);
-    float b = min(min(sB, ur.s1), zs.y);
-    if (!(a <= b)) return INF;
-    float va = unit_to_v(seg, ur.O.z + a * ur.D.z);
-    float vb = unit_to_v(seg, ur.O.z + b * ur.D.z);
-    int n = chord_pieces(abs(vb - va), ring, eLo);
-    float step = (b - a) / float(n);
-    vec2 cPrev = fiber_center_at(rest, va, ring, curlPhase);
-    for (int k = 0; k < n; k++) {
-        gIters++;
-        float sk = a + float(k) * step;
-        float sk1 = k == n - 1 ? b : sk + step;
-        vec2 cNext = fiber_center_at(rest, unit_to_v(seg, ur.O.z + sk1 * ur.D.z), ring, curlPhase);
-        float len = sk1 - sk;
-        // the ray seen from the fiber's chord: a point moving at D.xy - (chord velocity)
-        vec2 q0 = ur.O.xy + sk * ur.D.xy - cPrev;
-        vec2 dq = len > 0.0 ? ur.D.xy - (cNext - cPrev) / len : ur.D.xy;
-        vec2 e = circle_interval(q0, dq, vec2(0.0), uFiberRadius);
-        float lo = max(e.x, 0.0);
-        float hi = min(e.y, len);
-        if (lo <= hi) {
-            if (k == 0 && lo == 0.0) kind = a == zs.x ? 1 : 2;   // entered through the tip or a boundary
-            return sk + lo;
-        }
-        cPrev = cNext;
-    }
-    return INF;
+// Entry parameter of the ray into one fiber over the piece [P0.s, P1.s], INF on a miss; kind: 0 the
+// fiber's side, 1 its tip (length cut), 2 the piece's start (the ray was inside the fiber there).
+// The length cut as traverse.glsl's fiber_entry places it, with the ray's reciprocals (FiberRay); invLen
+// is 1 / the piece's length, 0 for a piece of no length (the test is then whether P0 is inside).
+float piece_entry(Segment seg, FiberRay fr, RingPoint P0, RingPoint P1, float invLen, vec4 curlStep,
+                  vec2 rest, float curlPhase, float vEnd, out int kind) {
+    float z = (vEnd - seg.v0) * fr.zScale;
+    float zc = vEnd >= seg.v1 ? INF : z / (seg.r0 + seg.kappa * z);
+    float zt = (zc - fr.oz) * fr.invDz;
+    vec2 zs = fr.dz > 0.0 ? vec2(-INF, zt) : (fr.dz < 0.0 ? vec2(zt, INF)
+            : (fr.oz <= zc ? vec2(-INF, INF) : vec2(INF, -INF)));
+    float lo = max(P0.s, zs.x);
+    float hi = min(P1.s, zs.y);
+#if SHAPE_CURL != 0
+    CurlTurn curl0 = curl_turn(curlPhase, P0);
+    CurlTurn curl1 = curl_advance(curl0, curlStep);
+#else
+    CurlTurn curl0, curl1;
+#endif
+    vec2 q0 = P0.p - ring_frame_center(rest, curl0, P0);
+    vec2 q1 = P1.p - ring_frame_center(rest, curl1, P1);
+    vec2 dq = (q1 - q0) * invLen;
+    vec2 e = circle_interval(q0, dq, vec2(0.0), uFiberRadius);
+    float sIn = max(P0.s + e.x, lo);
+    float sOut = min(P0.s + e.y, hi);
+    kind = sIn == P0.s + e.x ? 0 : (sIn == zs.x ? 1 : 2);
+    return vEnd > seg.v0 && sIn <= sOut ? sIn : INF;
 }

@@ -2,7 +2,8 @@
 //   vec2  fiber_center_at(vec2 rest, float v, int ring, float curlPhase)   unit-space centre at height v
 //   float shape_twist(float v, int ring)     rotation of the pattern about the axis, radians
 //   float shape_scale(float v)               ellipsoid: radial scale of every ring at height v
-//   vec2  twist_range(float va, float vb, int ring)   (min, max) rotation over a stretch of height
+//   RingPoint ring_point(Segment seg, UnitRay ur, float s, int ring)   the ray at s, seen in the ring's frame
+//   vec2  ring_frame_center(vec2 rest, CurlTurn curl, RingPoint P)      a fiber's centre in that frame
 // v is the guide parameter (0 root .. 1 tip). A fiber's centre at height v is its rest position scaled by
 // the ellipsoid, rotated by the twist, plus the curl offset:
 //   c(v) = E(v) R(tau(v)) rest + curl(v)
@@ -10,7 +11,11 @@
 // ellipsoid), e = 1 the ellipsoid inscribed in the guide's length.
 // Twist patterns: 0 uniform tau = 2 pi T v, 1 ramped tau = 2 pi T v^2, 2 alternating: the sign flips
 // ring by ring. Curl patterns: 0 helix (a circle about the rest line), 1 wave (a sway along the ring).
-// Twin: app/reference.py (fiber_center_at, shape_twist, shape_scale).
+// The ring's frame turns with the twist: R(-tau(v)) applied at every height. There a fiber's centre is
+//   c'(v) = E(v) rest + R(-tau(v)) curl(v)
+// whose angle about the axis stays within the curl's reach of the rest angle: a twisted fiber is straight
+// in it, and the ray, whose distance to the axis the rotation keeps, is the curve that turns.
+// Twin: app/reference.py (fiber_center_at, shape_twist, shape_scale, ring_point, ring_frame_center).
 
 uniform float uEllipsoid;
 uniform float uTwist;           // turns over the guide
@@ -21,16 +26,17 @@ uniform int uCurlPattern;
 
 const float TWO_PI = 6.28318530718;
 
+#ifndef SHAPE_TWIST
+#define SHAPE_TWIST 1   // 0: built for twist 0 (ring_point skips the rotation)
+#endif
+#ifndef SHAPE_CURL
+#define SHAPE_CURL 3    // what ring_frame_center builds in: 0 no curl, 1 helix, 2 wave, 3 either (by uniform)
+#endif
+
 float shape_twist(float v, int ring) {
     float t = uTwistPattern == 1 ? v * v : v;
     float sgn = (uTwistPattern == 2 && (ring & 1) == 1) ? -1.0 : 1.0;
     return sgn * TWO_PI * uTwist * t;
-}
-
-vec2 twist_range(float va, float vb, int ring) {
-    float a = shape_twist(va, ring);
-    float b = shape_twist(vb, ring);
-    return vec2(min(a, b), max(a, b));   // monotonic in v for every pattern (v >= 0)
 }
 
 float shape_scale(float v) {
@@ -52,5 +58,87 @@ vec2 fiber_center_at(vec2 rest, float v, int ring, float curlPhase) {
             c += uCurlAmplitude * sin(a) * along;
         }
     }
+    return c;
+}
+
+// The ray at parameter s as the ring's frame sees it: p = R(-tau) (O.xy + s D.xy), and what the fiber
+// centres need at that height (v, E(v), tau and its cosine and sine).
+struct RingPoint {
+    float s;
+    float v;
+    float e;
+    float tau;
+    vec2 cs;        // (cos tau, sin tau)
+    vec2 p;
+};
+
+RingPoint ring_point(Segment seg, UnitRay ur, float s, int ring) {
+    RingPoint P;
+    P.s = s;
+    P.v = unit_to_v(seg, ur.O.z + s * ur.D.z);
+    P.e = shape_scale(P.v);
+    vec2 q = ur.O.xy + s * ur.D.xy;
+#if SHAPE_TWIST
+    P.tau = shape_twist(P.v, ring);
+    P.cs = vec2(cos(P.tau), sin(P.tau));
+    P.p = vec2(P.cs.x * q.x + P.cs.y * q.y, P.cs.x * q.y - P.cs.y * q.x);
+#else
+    P.tau = 0.0;                // no twist: the ring's frame is the container's
+    P.cs = vec2(1.0, 0.0);
+    P.p = q;
+#endif
+    return P;
+}
+
+// c'(v) at the height of P. The helix turns at 2 pi F less the twist's rate in this frame; the wave sways
+// along the ring, which in this frame is a fixed direction (where the fiber is off the axis).
+// Curl turn: the curl's angle at P is (a - tau, a) with a = 2 pi (F v + phase); from one end of a chord
+// piece to the other both advance by the same amount for every fiber (ring_curl_step), so a piece's far
+// end takes its curl from the near end's by a rotation instead of another sine and cosine.
+struct CurlTurn { vec2 h; vec2 w; };    // (cos, sin) of a - tau (helix) and of a (wave)
+
+CurlTurn curl_turn(float curlPhase, RingPoint P) {
+    float a = TWO_PI * (uCurlFrequency * P.v + curlPhase);
+    CurlTurn c;
+    c.h = vec2(cos(a - P.tau), sin(a - P.tau));
+    c.w = vec2(cos(a), sin(a));
+#if SHAPE_CURL == 1
+    c.w = vec2(1.0, 0.0);
+#elif SHAPE_CURL == 2
+    c.h = vec2(1.0, 0.0);
+#endif
+    return c;
+}
+
+// (cos, sin) of how far the helix's and the wave's angles advance from P0 to P1: (helix, wave) as a vec4.
+vec4 ring_curl_step(RingPoint P0, RingPoint P1) {
+    float dw = TWO_PI * uCurlFrequency * (P1.v - P0.v);
+    float dh = dw - (P1.tau - P0.tau);
+    return vec4(cos(dh), sin(dh), cos(dw), sin(dw));
+}
+
+CurlTurn curl_advance(CurlTurn c, vec4 step) {
+    CurlTurn n;
+    n.h = vec2(c.h.x * step.x - c.h.y * step.y, c.h.y * step.x + c.h.x * step.y);
+    n.w = vec2(c.w.x * step.z - c.w.y * step.w, c.w.y * step.z + c.w.x * step.w);
+    return n;
+}
+
+vec2 ring_frame_center(vec2 rest, CurlTurn curl, RingPoint P) {
+    vec2 c = P.e * rest;
+#if SHAPE_CURL != 0
+#if SHAPE_CURL != 1
+    float r2 = dot(rest, rest);
+    vec2 along = r2 > 0.0 && P.e > 0.0 ? vec2(-rest.y, rest.x) * inversesqrt(r2) : vec2(P.cs.x, -P.cs.y);
+    vec2 wave = curl.w.y * along;
+#endif
+#if SHAPE_CURL == 1
+    c += uCurlAmplitude * curl.h;
+#elif SHAPE_CURL == 2
+    c += uCurlAmplitude * wave;
+#else
+    c += uCurlAmplitude * (uCurlPattern == 0 ? curl.h : wave);
+#endif
+#endif
     return c;
 }

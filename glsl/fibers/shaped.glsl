@@ -1,0 +1,219 @@
+// shaped.glsl: the traversal for curved fibers (curl, twist, ellipsoid); traverse.glsl dispatches here.
+//   FiberHit traverse_shaped(Segment seg, UnitRay ur)
+// A ring's fibers no longer sit in its annulus at every height: the ellipsoid scales them by E(v) in
+// [eLo, eHi] over this segment and the curl moves them by up to its amplitude. So each ring gets a band
+// [inner, outer] that holds its fibers at every height of the segment (bands of neighbouring rings may
+// overlap), and the ray's arcs through the bands are visited in order of where they start: the fronts of
+// the bands crossed twice (outer to inner), the first halves of the bands crossed once (split at the
+// ray's closest approach to the axis), their second halves, then the backs (inner to outer). One loop
+// visits them all, as traverse_straight's does.
+// An arc is seen in the frame that turns with its ring's twist (shape.glsl): there the fibers do not
+// turn, and the ray's distance to the axis is what it was, so the bands and arcs are those of the
+// untwisted ring. The arc is cut into chord pieces (curved.glsl: chord_pieces, as many as the ray's climb
+// and the shape's bend need); a piece is a straight stretch from the ray's point at its start to the one
+// at its end, which sweeps the angles between them as seen from the axis; only the fibers whose slot,
+// widened by the ring's reach (jitter, the curl amplitude and the fiber's disc), meets those angles are
+// tested on it. The twist never widens a window.
+// exact: a piece's candidates up to two reaches past its latest improvement are tested, and the pieces
+// (and arcs) stop once the next one starts beyond the nearest hit so far. fast: the first hit wins. brute: every fiber of the draw's share on every
+// piece of every arc.
+// The loops are written in traverse_straight's style: no early return and no `continue`; a piece or arc
+// with nothing to do gets no candidates (docs/performance.md).
+// Twin: app/reference.py (shaped_nearest_segment).
+
+#include "fibers/curved.glsl"
+
+#ifndef SHAPE_ELLIPSOID
+#define SHAPE_ELLIPSOID 1   // 0: built for ellipsoid 0 (the bands of the segment are the arc's)
+#endif
+
+struct Bands { float eLo; float eHi; };
+
+Bands segment_bands(Segment seg) {
+    float vLo = unit_to_v(seg, seg.zLo / (seg.r0 + seg.kappa * seg.zLo));
+    float vHi = unit_to_v(seg, seg.zHi / (seg.r0 + seg.kappa * seg.zHi));
+    float ea = shape_scale(vLo), eb = shape_scale(vHi);
+    Bands b;
+    b.eLo = min(ea, eb);
+    b.eHi = (min(vLo, vHi) <= 0.5 && max(vLo, vHi) >= 0.5) ? 1.0 : max(ea, eb);
+    return b;
+}
+
+vec2 ring_band(int i, Bands b) {
+    float rho = uRingA[i].x, dr = uRingB[i].x;
+    float grow = uFiberRadius + uCurlAmplitude + 1e-6;
+    return vec2(max(0.0, b.eLo * (rho - dr) - grow), b.eHi * (rho + dr) + grow);
+}
+
+// Angular reach of ring i's fibers about their slots in the ring's frame: the jitter, then the disc of
+// radius r = fiber radius + curl amplitude about the scaled rest position Q, seen from the axis. A point
+// P within r of Q is within asin(r / |Q|) of Q's direction, and also within asin(r / |P|): Q lies on
+// the half-line through the axis at its angle, and P is |P| sin(angle) from that line. So a piece whose
+// chord keeps away from the axis (rayMin: its nearest distance) narrows the reach of the inner rings,
+// where the disc alone would take the whole ring.
+float shaped_reach(int i, Bands b, float rayMin) {
+    float dMin = max(b.eLo * (uRingA[i].x - uRingB[i].x), rayMin);
+    float r = uFiberRadius + uCurlAmplitude;
+    float disc = dMin > r ? asin(r / dMin) : 3.14159265359;
+    return uRingB[i].y + disc + EPS_ANGLE;
+}
+
+// The distance from the axis to the chord from a to b.
+float chord_distance(vec2 a, vec2 b) {
+    vec2 d = b - a;
+    float len2 = dot(d, d);
+    float t = len2 > 0.0 ? clamp(-dot(a, d) / len2, 0.0, 1.0) : 0.0;
+    return length(a + t * d);
+}
+
+float shaped_curl_phase(uint ringKey, int ring, int j) {
+#if HASH_THESIS
+    float slotDeg = degrees(uRingA[ring].z + float(j) * uRingA[ring].y);
+    return thesis_random(slotDeg, float(ring), float(CH_CURL));
+#else
+    return key_random(lowbias32(ringKey ^ uint(j)), CH_CURL);   // fiber_key, from the ring's part
+#endif
+}
+
+FiberHit traverse_shaped(Segment seg, UnitRay ur) {
+    FiberHit best = no_hit();
+    FiberRay fr = fiber_ray(seg, ur);
+    Bands bands = segment_bands(seg);
+    vec2 o2 = ur.O.xy;
+    vec2 d2 = ur.D.xy;
+    float a2 = dot(d2, d2);
+    float sa = sqrt(a2);
+    float sMid = a2 > 0.0 ? -dot(o2, d2) / a2 : ur.s0;
+    // The bands the path enters (a prefix of the rings: outer radii fall with the ring index) and those
+    // of them it crosses twice (a prefix again): a circle of radius r is met when |o x d| <= |d| r.
+    float crs = abs(o2.x * d2.y - o2.y * d2.x);
+    int K = uRings;
+    int nReached = 0;
+    int nTwice = 0;
+    for (int i = 0; i < K; i++) {
+        gIters++;
+        vec2 band = ring_band(i, bands);
+        nReached += crs <= sa * band.y ? 1 : 0;
+        nTwice += crs <= sa * band.x ? 1 : 0;
+    }
+    nTwice = min(nTwice, nReached);
+    // By ring (uRingOrder): arcs 0..K-1 are the first arcs of rings 0..K-1, K..2K-1 the second halves of
+    // rings 0..K-1, 2K..3K-1 the backs of rings K-1..0, so every lane of a SIMD batch visits the same ring
+    // at the same iteration (renderer.py: draw_ranges). Else each lane's own arcs, in its order.
+    bool byRing = uRingOrder != 0;
+    int arcs = byRing ? 3 * K : 2 * nReached;
+    vec2 bestRest = vec2(0.0);
+    float bestPhase = 0.0;
+    for (int p = 0; p < arcs; p++) {
+        gIters++;
+        int q = byRing ? p - K : p - nReached;          // index in the second group
+        int side = byRing ? (p < K ? 0 : (p < 2 * K ? 1 : 2))
+                          : (p < nReached ? 0 : (q < nReached - nTwice ? 1 : 2));
+        int i = byRing ? (side == 0 ? p : (side == 1 ? q : 3 * K - 1 - p))
+                       : (side == 0 ? p : (side == 1 ? nTwice + q : nReached - 1 - q));
+        bool twice = i < nTwice;
+        bool applies = i < nReached && (side == 0 || (side == 1) != twice);
+        vec2 band = ring_band(i, bands);
+        vec2 outer = circle_interval(o2, d2, vec2(0.0), band.y);
+        vec2 inner = circle_interval(o2, d2, vec2(0.0), band.x);
+        float sA = side == 0 ? outer.x : (side == 1 ? sMid : inner.y);
+        float sB = side == 0 ? (twice ? inner.x : sMid) : outer.y;
+        float a = max(sA, ur.s0);
+        float b = min(sB, ur.s1);
+        bool inside = applies && a <= b;
+        if (inside && gMode != 2 && a >= best.s) break;     // arcs come in order of their start
+        Bands arcBands = bands;
+#if SHAPE_ELLIPSOID
+        // The heights the arc spans bound the ellipsoid's scale tighter than the segment's do: the ring's
+        // fibers there lie in a narrower band, which cuts the arc down and narrows the reach. (The break
+        // above keeps the segment band's start, which is what comes in order.)
+        float va = unit_to_v(seg, ur.O.z + a * ur.D.z);
+        float vb = unit_to_v(seg, ur.O.z + b * ur.D.z);
+        arcBands.eLo = min(shape_scale(va), shape_scale(vb));
+        arcBands.eHi = min(va, vb) <= 0.5 && max(va, vb) >= 0.5 ? 1.0 : max(shape_scale(va), shape_scale(vb));
+        vec2 tight = ring_band(i, arcBands);
+        vec2 outerT = circle_interval(o2, d2, vec2(0.0), tight.y);
+        vec2 innerT = circle_interval(o2, d2, vec2(0.0), tight.x);
+        a = max(a, side == 0 ? outerT.x : innerT.y);        // side 0 lies before the closest approach
+        b = min(b, side == 0 ? innerT.x : outerT.y);
+        inside = inside && a <= b;
+#endif
+        ivec2 share = ring_share(i, gMode == 2 ? uBruteRange : uFiberRange);
+        bool open = inside && share.x < share.y;            // else none of this ring's fibers is in this draw
+        gPieces += open ? 1 : 0;
+        RingPoint P0 = ring_point(seg, ur, a, i);
+        RingPoint Pb = ring_point(seg, ur, b, i);
+        int pieces = open ? chord_pieces(b - a, abs(Pb.v - P0.v), sa, i, arcBands.eLo) : 0;
+        float step = (b - a) / float(max(pieces, 1));
+        vec4 ring = uRingA[i];
+        vec4 ringB = uRingB[i];
+        uint ringKey = ring_key(uSeed, seg.guide, i);
+        int n = uRingN[i].x;
+        bool found = false;
+        for (int k = 0; k < pieces; k++) {
+            gIters++;
+            RingPoint P1 = k == pieces - 1 ? Pb : ring_point(seg, ur, a + float(k + 1) * step, i);
+            float invLen = P1.s > P0.s ? 1.0 / (P1.s - P0.s) : 0.0;
+#if SHAPE_CURL != 0
+            vec4 curlStep = ring_curl_step(P0, P1);
+#else
+            vec4 curlStep = vec4(0.0);
+#endif
+            // the candidates: slots within the reach of the angles the piece sweeps (a chord never
+            // sweeps half a turn or more: past 2.5 radians it passes so near the axis that all are taken)
+            float reach = shaped_reach(i, arcBands, chord_distance(P0.p, P1.p) * (1.0 - 1e-5));
+            // exact: a hit nearer than one on candidate t lies before it on the chord, so its fiber's slot
+            // is at most two reaches further on (traverse_straight's rule, with the piece's reach)
+            int after = gMode == 1 ? int(floor(2.0 * reach * ringB.z * (1.0 + 1e-6))) + 1 : n;
+            vec2 pA = dot(P0.p, P0.p) > 0.0 ? P0.p : P1.p;
+            vec2 pB = dot(P1.p, P1.p) > 0.0 ? P1.p : pA;
+            float thA = atan(pA.y, pA.x);
+            float span = wrap_pi(atan(pB.y, pB.x) - thA);
+            int dir = gMode == 2 || span >= 0.0 ? 1 : -1;
+            float first = (thA - float(dir) * reach - ring.z) * ringB.z;
+            float last = (thA + span + float(dir) * reach - ring.z) * ringB.z;
+            int j0 = dir > 0 ? int(ceil(first)) : int(floor(first));
+            int j1 = dir > 0 ? int(floor(last)) : int(ceil(last));
+            int count = abs(span) > 2.5 ? n : min(max(0, (j1 - j0) * dir + 1), n);
+            j0 = gMode == 2 ? 0 : j0;
+            count = gMode == 2 ? n : count;
+            ivec2 run0 = candidate_run(0, j0, dir, count, n, share);
+            ivec2 run1 = candidate_run(1, j0, dir, count, n, share);
+            int end = run0.y + run1.y;
+            for (int t = 0; t < end; t++) {
+                gIters++;
+                gTests++;
+                int j = candidate(run0, run1, dir, t);
+                vec2 rest;
+                float vEnd;
+                fiber_center_keyed(ring, ringB, ringKey, i, j, rest, vEnd);
+                float phase = shaped_curl_phase(ringKey, i, j);
+                int kind;
+                float s = piece_entry(seg, fr, P0, P1, invLen, curlStep, rest, phase, vEnd, kind);
+                s = i == gSkipRing && j == gSkipFiber ? INF : s;
+                bool better = beats(s, i, j, best.s, best.ring, best.fiber);
+                best.s = better ? s : best.s;
+                best.ring = better ? i : best.ring;
+                best.fiber = better ? j : best.fiber;
+                best.kind = better ? kind : best.kind;
+                bestRest = better ? rest : bestRest;
+                bestPhase = better ? phase : bestPhase;
+                found = found || better;
+                end = !better ? end : (gMode == 0 ? t : min(end, t + 1 + after));   // fast: the first wins
+            }
+            // exact: no later piece can start before the nearest hit; fast: stop at the first
+            bool stop = gMode == 0 ? found : (gMode == 1 && P1.s >= best.s);
+            pieces = stop ? k + 1 : pieces;
+            P0 = P1;
+        }
+        if (gMode == 0 && found) break;
+    }
+    // the hit fiber's centre and how it moves with v, in the container's frame, for shading
+    bool hit = best.s < INF;
+    float v = unit_to_v(seg, ur.O.z + (hit ? best.s : 0.0) * ur.D.z);
+    int ringHit = max(best.ring, 0);
+    best.c = fiber_center_at(bestRest, v, ringHit, bestPhase);
+    best.dcdv = (fiber_center_at(bestRest, v + 1e-3, ringHit, bestPhase)
+               - fiber_center_at(bestRest, v - 1e-3, ringHit, bestPhase)) / 2e-3;
+    return best;
+}
