@@ -12,8 +12,8 @@ each summed over the frame and divided by the pixels that show a fiber.
 The thesis's Table 4 pair (``containers`` suite, "full": 360 fibers per ring, 10 and 200 overlapping
 containers) rides in the same rounds, so its ms-per-covered-pixel ratio is measured in this process too.
 
-``python -m app.bench grooms-sheet [--out DIR]`` draws the contact sheet: the five grooms shaded and the
-candidate containers each pixel of harolongo traversed, as a heat map.
+``python -m app.bench grooms-sheet [--out DIR]`` draws the contact sheet: the five grooms shaded and, as
+heat maps, the candidate containers each pixel of harolongo traversed and its walk steps.
 """
 
 from __future__ import annotations
@@ -258,8 +258,9 @@ def plot(rows: list[Row], path: Path, machine, plt, save) -> None:
 # The contact sheet
 # --------------------------------------------------------------------------------------------------
 def sheet(out: Path, size=(640, 360)) -> Path:
-    """The default preset and the five grooms shaded (exact), and harolongo's candidate containers
-    traversed per pixel as a heat map, in one PNG with a caption under each picture."""
+    """The default preset and the five grooms shaded (exact), and for harolongo two heat maps beside its
+    picture: the candidate containers each pixel traversed and the walk steps through the hierarchy, in
+    one PNG (three columns) with a caption under each picture."""
     from PIL import Image, ImageDraw
     from tqdm import tqdm
 
@@ -267,9 +268,9 @@ def sheet(out: Path, size=(640, 360)) -> Path:
     from ..render.debug_views import heat
 
     hc = create_headless()
+    shaded, extra = [], []
     try:
         programs = ProgramCache()
-        tiles = []
         for name in tqdm((DEFAULT, *GROOM_FILES), desc="grooms sheet", unit="scene"):
             try:
                 s = make_subject(hc.ctx, programs, name, size)
@@ -277,27 +278,31 @@ def sheet(out: Path, size=(640, 360)) -> Path:
                 continue
             f = s.renderer.render(s.p, s.cam, s.size, outputs=("color", "ids", "cost"), mode="exact")
             covered = max(1, int(f.hit.sum()))
-            tiles.append((f.color, f"{name}: {s.scene.n_segments:,} containers, "
-                                   f"{f.cost[..., 2].sum() / covered:.2f} entered/px, "
-                                   f"{f.cost[..., 0].sum() / covered:.1f} tests/px"))
-            if name == "harolongo.data":
-                walked = f.walk[..., 0]
-                vmax = max(1.0, float(np.percentile(walked[f.hit], 99)))
-                img = heat(walked, vmax, walked > 0)
-                tiles.append((_legend(img, vmax), f"harolongo: candidate containers traversed per pixel "
-                                                  f"(mean {walked.sum() / covered:.2f} per covered px)"))
+            tile = (f.color, f"{name}: {s.scene.n_segments:,} containers, "
+                             f"{f.cost[..., 2].sum() / covered:.2f} entered/px, "
+                             f"{f.cost[..., 0].sum() / covered:.1f} tests/px")
+            if name != "harolongo.data":
+                shaded.append(tile)
+            else:
+                extra.append(tile)
+                for channel, what in ((0, "candidate containers traversed"), (1, "walk steps")):
+                    v = f.walk[..., channel]
+                    vmax = max(1.0, float(np.percentile(v[f.hit], 99)))
+                    extra.append((_legend(heat(v, vmax, v > 0), vmax, f"{what} / pixel"),
+                                  f"harolongo: {what} per pixel (mean {v.sum() / covered:.2f} per covered px)"))
             s.renderer.release_targets()
     finally:
         hc.release()
-    cols, cap = 2, 18
+    cols, cap = 3, 18
+    rows = [shaded[i:i + cols] for i in range(0, len(shaded), cols)] + ([extra] if extra else [])
     h, w = size[1], size[0]
-    rows = (len(tiles) + cols - 1) // cols
-    canvas = Image.new("RGB", (cols * w, rows * (h + cap)), (20, 20, 20))
+    canvas = Image.new("RGB", (cols * w, len(rows) * (h + cap)), (20, 20, 20))
     draw = ImageDraw.Draw(canvas)
-    for i, (img, caption) in enumerate(tiles):
-        x, y = (i % cols) * w, (i // cols) * (h + cap)
-        canvas.paste(Image.fromarray(img), (x, y))
-        draw.text((x + 4, y + h + 3), caption, fill=(230, 230, 230))
+    for r, row in enumerate(rows):
+        for c, (img, caption) in enumerate(row):
+            x, y = c * w, r * (h + cap)
+            canvas.paste(Image.fromarray(img), (x, y))
+            draw.text((x + 4, y + h + 3), caption, fill=(230, 230, 230))
     out.mkdir(parents=True, exist_ok=True)
     path = out / "sheet.png"
     tmp = path.with_suffix(".tmp.png")
@@ -306,7 +311,8 @@ def sheet(out: Path, size=(640, 360)) -> Path:
     return path
 
 
-def _legend(img: np.ndarray, vmax: float) -> np.ndarray:
+def _legend(img: np.ndarray, vmax: float, unit: str) -> np.ndarray:
+    """A colour-scale bar from 0 to ``vmax`` along the bottom of a heat map."""
     from PIL import Image, ImageDraw
 
     from ..render.debug_views import heat
@@ -318,7 +324,7 @@ def _legend(img: np.ndarray, vmax: float) -> np.ndarray:
     pil = Image.fromarray(img)
     draw = ImageDraw.Draw(pil)
     draw.text((10, h - 32), "0", fill=(255, 255, 255))
-    label = f"{vmax:.0f} containers traversed / pixel"
+    label = f"{vmax:.0f} {unit}"
     draw.text((w - 10 - 6 * len(label), h - 32), label, fill=(255, 255, 255))
     return np.asarray(pil)
 
