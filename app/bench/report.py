@@ -368,6 +368,8 @@ def write_suite(name: str, rows: list[Row], out: Path, machine: Machine | None, 
                   markdown_table(fits, [("axis", "axis"), ("method", "method"), ("exponent", "exponent b"),
                                         ("r2", "R^2"), ("x_range", "range")])
                   if fits else "(fewer than two points per axis: nothing to fit)"]
+    if name == "grooms":
+        parts += ["", grooms.NOTES, "", targets_markdown(grooms.targets(rows))]
     if name == "memory":
         x = memory_crossover(rows)
         parts += ["", f"Cross-over (explicit frame time = virtual, exact mode): "
