@@ -103,6 +103,8 @@ def work_per_pixel(s: Subject, mode: str) -> Row:
             "entered_per_px": float(f.cost[..., 2].sum() * per),
             "candidates_per_px": float(f.walk[..., 0].sum() * per),
             "steps_per_px": float(f.walk[..., 1].sum() * per),
+            "walked_per_px": float(f.walk[..., 2].sum() * per),
+            "deepest_walk_draws": int(f.walk[..., 2].max()),
             "tests_per_px": float(f.cost[..., 0].sum() * per),
             "unfinished": int(f.unfinished)}
 
@@ -175,7 +177,9 @@ def run(env, cfg: dict) -> list[Row]:
 
 COLUMNS = [("scene", "scene"), ("status", "status"), ("segments", "container segments"),
            ("covered", "covered"), ("entered_per_px", "entered/px"), ("candidates_per_px", "candidates/px"),
-           ("steps_per_px", "walk steps/px"), ("tests_per_px", "fiber tests/px"), ("draws", "draws"),
+           ("steps_per_px", "walk steps/px"), ("tests_per_px", "fiber tests/px"),
+           ("walked_per_px", "walk invocations/px"), ("deepest_walk_draws", "deepest pixel's walk draws"),
+           ("draws", "draws"),
            ("ms", "ms/frame"), ("cv", "CV"), ("x_ms", "x default"), ("cpu_ms", "CPU ms/frame"),
            ("x_cpu_ms", "CPU x default"), ("fast_ms", "fast ms/frame"), ("x_fast_ms", "fast x default"),
            ("us_per_covered_px", "us/covered px"), ("x_us_per_covered_px", "us/px x 10 containers"),
@@ -186,7 +190,9 @@ NOTES = ("ms/frame: exact mode, wall clock, median of the timed rounds; CPU ms/f
          "structure, same process. Per covered pixel (px): the frame's sum over every pixel the walk ran on, "
          "divided by the pixels that show a fiber; entered: containers whose entry the traversal computed "
          "(cost[..., 2]); candidates: leaves the walk handed over (walk[..., 0]); walk steps: inner-node steps "
-         "(walk[..., 1]); draws: walk draws plus the resolve of one frame. Table 4 rows: the containers suite's "
+         "(walk[..., 1]); walk invocations: walk-shader runs (walk[..., 2], one per pixel per walk draw it "
+         "took part in); deepest pixel's: the most of them one pixel needed, which sets the draws of a frame; "
+         "draws: walk draws plus the resolve of one frame (median). Table 4 rows: the containers suite's "
          "scene, 360 fibers per ring, its camera and size; us/px x 10 containers: microseconds per covered pixel "
          "over the 10-container scene's.")
 TARGET_FRAME_X, TARGET_ENTERED, TARGET_TESTS, TARGET_TABLE4_X = 3.0, 2.0, 40.0, 2.0
