@@ -258,9 +258,8 @@ def plot(rows: list[Row], path: Path, machine, plt, save) -> None:
     t4 = [r for r in ok if str(r["scene"]).startswith("Table 4") and r.get("x_us_per_covered_px")]
     if t4:
         hi = max(t4, key=lambda r: r["segments"])
-        a.text(0.01, 0.97, f"Table 4 full, {hi['segments']} vs {min(t4, key=lambda r: r['segments'])['segments']} "
-               f"containers: {hi['x_us_per_covered_px']:.2f}x ms per covered pixel (target 2x)",
-               transform=a.transAxes, va="top", fontsize=7)
+        a.set_xlabel(f"Table 4 full, {hi['segments']} vs {min(t4, key=lambda r: r['segments'])['segments']} "
+                     f"containers: {hi['x_us_per_covered_px']:.2f}x ms per covered pixel (target 2x)", fontsize=8)
     for ax in (a, b):
         ax.set_xticks(xs, labels, rotation=15, fontsize=7)
         ax.grid(True, axis="y", which="both", alpha=0.3)
