@@ -156,3 +156,30 @@ def test_walk_winner_is_the_float64_nearest_over_all_containers(grooms, frames, 
             t_gpu = whole.geom[py[k], px[k], 3]
             mismatch.append((int(py[k]), int(px[k]), tuple(gpu[k]), want, float(t_gpu), float(ref.t[0])))
     assert not mismatch, f"{name}: {len(mismatch)} of {len(candidates)} rays differ: {mismatch[:4]}"
+
+
+COVERAGE_BUG = pytest.mark.xfail(strict=True, reason="coverage.vert reads uBvhLeaves, which Renderer._coverage "
+                                                     "leaves at 0: every node of the coverage level is taken for a "
+                                                     "leaf cylinder (drop this mark once fixed)")
+
+
+@pytest.mark.parametrize("n", [126, pytest.param(128, marks=COVERAGE_BUG)])
+def test_every_fiber_the_float64_reference_sees_is_drawn(renderer, n):
+    """128 containers fill a complete tree (no empty node at the coverage level), 126 leave one empty; the
+    coverage pass must mark every pixel a container can cover in both (found on the grooms work, where
+    every real groom has empty nodes and so hid this)."""
+    from app.bench.suites import overlapping_scene
+
+    p, scene, cam = overlapping_scene(n, 360)
+    renderer.set_scene(scene)
+    size = (160, 90)
+    f = renderer.render(p, cam, size, outputs=("ids",), mode="exact")
+    assert f.unfinished == 0
+    ro, rd = cam.rays(*size)
+    pick = np.random.default_rng(n).choice(len(ro), 300, replace=False)
+    ref = reference.brute_nearest(scene, p, ro[pick], rd[pick], t_near=cam.near)
+    gpu = f.ids.reshape(-1, 4)[pick]
+    want = np.where(ref.hit[:, None], np.stack([ref.guide + 1, ref.ring, ref.fiber, ref.segment], 1), 0)
+    assert ref.hit.sum() > 30
+    differ = np.any(gpu != want, 1)
+    assert not differ.any(), f"{int(differ.sum())} of 300 rays differ ({int((ref.hit & (gpu[:, 0] == 0)).sum())} missed)"
