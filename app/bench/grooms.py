@@ -94,8 +94,21 @@ def make_subject(ctx, programs: ProgramCache, name: str, size) -> Subject:
     return Subject(name, p, scene, cam, tuple(size), r, t1 - t0, t2 - t1)
 
 
+def neutral_framebuffer(ctx):
+    """Bind a framebuffer of the suite's own before each frame. Renderer._pass sets ctx.scissor before it
+    binds its targets, so the region lands on whatever framebuffer is bound, and with several renderers
+    (sizes) on one context it clipped the next scene's frames (tests/test_groom_walk.py:
+    test_a_frame_does_not_depend_on_the_sizes_drawn_before); bound here, it lands on this one."""
+    fb = getattr(ctx, "_grooms_neutral_fbo", None)
+    if fb is None:
+        fb = ctx.framebuffer(ctx.renderbuffer((1, 1)))
+        ctx._grooms_neutral_fbo = fb
+    fb.use()
+
+
 def work_per_pixel(s: Subject, mode: str) -> Row:
     """Covered fraction and the walk's work per covered pixel, from one cost pass."""
+    neutral_framebuffer(s.renderer.ctx)
     f = s.renderer.render(s.p, s.cam, s.size, outputs=("ids", "cost"), mode=mode)
     covered = int(f.hit.sum())
     per = 1.0 / max(1, covered)
@@ -111,6 +124,7 @@ def work_per_pixel(s: Subject, mode: str) -> Row:
 
 def timed_frame(s: Subject, mode: str, sync) -> tuple[float, float, int]:
     """(wall ms, process CPU ms, draws) of one frame, nothing read back."""
+    neutral_framebuffer(s.renderer.ctx)
     w0, c0 = time.perf_counter(), time.process_time()
     f = s.renderer.render(s.p, s.cam, s.size, outputs=("draw",), mode=mode)
     sync()
