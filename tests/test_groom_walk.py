@@ -212,3 +212,22 @@ def test_a_frame_does_not_depend_on_the_sizes_drawn_before(renderer, ctx):
     other.render(p, cam, small, outputs=("ids",), mode="exact")
     np.testing.assert_array_equal(renderer.render(p, cam, big, outputs=("ids",), mode="exact").ids, fresh.ids)
     other.release_targets()
+
+
+@SCISSOR_BUG
+def test_a_region_draws_only_its_rectangle(renderer):
+    """``region=`` (tiled refinement) on a fresh renderer: pixels outside it stay background, inside it
+    equal the whole frame's."""
+    from app.bench.suites import overlapping_scene
+
+    p, scene, cam = overlapping_scene(10, 360)
+    renderer.set_scene(scene)
+    size = (160, 90)
+    whole = renderer.render(p, cam, size, outputs=("ids",), mode="exact")
+    renderer.release_targets()
+    part = renderer.render(p, cam, size, outputs=("ids",), mode="exact", region=(0, 0, 80, 45))
+    inside = (slice(45, 90), slice(0, 80))          # GL's bottom-left quarter, rows from the top
+    np.testing.assert_array_equal(part.ids[inside], whole.ids[inside])
+    outside = part.hit.copy()
+    outside[inside] = False
+    assert whole.hit.sum() - whole.hit[inside].sum() > 0 and not outside.any()
