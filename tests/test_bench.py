@@ -12,6 +12,7 @@ from PIL import Image
 
 from app.bench.__main__ import main, parse_bytes
 from app.bench.report import targets
+from app.bench.grooms import targets as grooms_targets
 from app.bench.suites import SUITES, Env, layout_for, memory_run
 from app.bench.timing import Timing, crossover, fit_power_law, time_frames
 from app.reference import fiber_count
@@ -106,3 +107,19 @@ def test_targets_from_rows():
     assert all(met) and len(met) == 4
     cross = next(r for k, r in got.items() if k.startswith("cross-over"))
     assert "fibers" in cross["measured"]
+
+
+def test_grooms_targets_from_rows():
+    """Issue 12's targets read the right rows: harolongo against the default preset, Table 4's largest
+    scene against its smallest."""
+    rows = [{"scene": "default preset", "ms": 20.0, "cpu_ms": 30.0, "status": "ok"},
+            {"scene": "harolongo.data", "ms": 70.0, "cpu_ms": 60.0, "x_ms": 3.5, "x_cpu_ms": 2.0, "width": 640,
+             "height": 360, "entered_per_px": 1.9, "candidates_per_px": 2.1, "tests_per_px": 41.0},
+            {"scene": "Table 4 full, 10 containers", "segments": 10, "us_per_covered_px": 5.0,
+             "x_us_per_covered_px": 1.0, "x_cpu_us_per_covered_px": 1.0},
+            {"scene": "Table 4 full, 200 containers", "segments": 200, "us_per_covered_px": 9.0,
+             "x_us_per_covered_px": 1.8, "x_cpu_us_per_covered_px": 2.2}]
+    got = grooms_targets(rows)
+    assert [r["target"][:12] for r in got] == ["harolongo pe", "harolongo: c", "harolongo: f", "Table 4 full"]
+    met = [r["met"] for r in got]
+    assert met == [False, True, False, True]            # frame 3.5x; entered 1.9; tests 41; Table 4 1.8x

@@ -1,6 +1,6 @@
 """``python -m app.bench [suite ...] [--quick] [--out DIR]``: run the benchmark suites.
 
-Suites: memory, rings, containers, accuracy, scaling (default: all). Each writes DIR/<suite>.csv,
+Suites: memory, rings, containers, accuracy, scaling, grooms (default: all). Each writes DIR/<suite>.csv,
 DIR/<suite>.md and DIR/<suite>.png; DIR/summary.md holds the machine, the command and the targets.
 ``--quick`` runs a reduced set in under two minutes on a 2-core llvmpipe machine (CI, newcomers); the full
 set takes under thirty. ``main(argv)`` is what ``vfiber bench`` calls.
@@ -59,8 +59,10 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
-# Reports with their own command lines: `vfiber bench extremes ...`, `vfiber bench quality ...`
-DELEGATED = {"extremes": "app.bench.extremes", "quality": "app.bench.quality"}
+# Reports with their own command lines: `vfiber bench extremes ...`, `vfiber bench quality ...`,
+# `vfiber bench grooms-sheet ...`
+DELEGATED = {"extremes": "app.bench.extremes", "quality": "app.bench.quality",
+             "grooms-sheet": "app.bench.grooms"}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from .. import units
+from . import grooms
 from .suites import SUITES, thesis_table_2
 from .timing import Machine, crossover, fit_power_law
 
@@ -61,13 +62,13 @@ def human_bytes(n: float | None) -> str:
 def fmt(key: str, v: Any) -> str:
     if v is None or v == "":
         return ""
-    if key in ("gpu_bytes", "rss_peak", "rss_base", "needed_bytes"):
+    if key in ("gpu_bytes", "rss_peak", "rss_base", "needed_bytes", "scene_gpu_bytes"):
         return human_bytes(v)
     if key in ("cv",) or key.endswith("_cv"):
         return f"{100 * float(v):.1f}%"
     if key in ("coverage_agree", "id_agree", "covered_iou", "covered"):
         return f"{100 * float(v):.2f}%"
-    if key in ("fibers", "x", "containers", "fibers_per_container") and isinstance(v, (int, float)):
+    if key in ("fibers", "x", "containers", "fibers_per_container", "segments") and isinstance(v, (int, float)):
         return f"{int(v):,}"
     if isinstance(v, float):
         if key.endswith("ms"):
@@ -156,6 +157,7 @@ def targets(results: dict[str, list[Row]]) -> list[Row]:
                                 f"{r['tests_per_px'] * r['tests_vs_brute']:,.0f} tests/px), "
                                 f"{r['differ_brute_px']} px differ",
                     "met": r["tests_vs_brute"] >= 50 and r["differ_brute_px"] == 0})
+    out += grooms.targets(results.get("grooms") or [])
     return out
 
 
@@ -315,8 +317,12 @@ def plot_scaling(rows: list[Row], path: Path, machine: Machine | None) -> None:
     _save(fig, path, machine, bottom=0.05)
 
 
+def plot_grooms(rows: list[Row], path: Path, machine: Machine | None) -> None:
+    grooms.plot(rows, path, machine, _plt(), _save)
+
+
 PLOTS = {"memory": plot_memory, "rings": plot_rings, "containers": plot_containers,
-         "accuracy": plot_accuracy, "scaling": plot_scaling}
+         "accuracy": plot_accuracy, "scaling": plot_scaling, "grooms": plot_grooms}
 
 
 def _tidy(fig) -> None:
@@ -362,6 +368,8 @@ def write_suite(name: str, rows: list[Row], out: Path, machine: Machine | None, 
                   markdown_table(fits, [("axis", "axis"), ("method", "method"), ("exponent", "exponent b"),
                                         ("r2", "R^2"), ("x_range", "range")])
                   if fits else "(fewer than two points per axis: nothing to fit)"]
+    if name == "grooms":
+        parts += ["", grooms.NOTES, "", targets_markdown(grooms.targets(rows))]
     if name == "memory":
         x = memory_crossover(rows)
         parts += ["", f"Cross-over (explicit frame time = virtual, exact mode): "

@@ -25,6 +25,7 @@ from ..render.explicit import DEFAULT_BUDGET_BYTES, ExplicitBudgetError, Explici
 from ..render.renderer import Frame, Renderer
 from ..scene.containers import Scene
 from ..scene.generators import build_scene, guide_polyline
+from . import grooms
 from .timing import current_rss_bytes, peak_rss_bytes, time_frames
 
 Row = dict[str, Any]
@@ -426,6 +427,9 @@ SUITES: dict[str, Suite] = {s.name: s for s in (
     Suite("scaling", "Time against resolution, visible containers and rings, with fitted exponents", "-",
           scaling_configs, scaling_run,
           columns=[("axis", "axis"), ("x", "x"), ("method", "method"), ("ms", "ms/frame"), ("cv", "CV")]),
+    Suite("grooms", "Real grooms per strand against the default preset, and Table 4's 200 vs 10 containers, "
+          "in one process", "Table 4 (full, 10 and 200 containers)", grooms.configs, grooms.run,
+          columns=grooms.COLUMNS),
 )}
 
 
