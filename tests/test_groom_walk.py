@@ -34,7 +34,7 @@ def grooms():
     """name -> (params, scene, camera): built once for the module (harolongo takes seconds)."""
     out = {}
     for name in GROOMS:
-        p, _ = resolve_params(str(DATA / name), [])
+        p, _ = resolve_params(str(DATA / name), ["quality.visibility=walk"])     # the walk, whatever auto says
         scene = build_scene(p)
         out[name] = (p, scene, Camera.from_params(p, scene, aspect=SIZE[0] / SIZE[1]))
     return out
@@ -158,12 +158,7 @@ def test_walk_winner_is_the_float64_nearest_over_all_containers(grooms, frames, 
     assert not mismatch, f"{name}: {len(mismatch)} of {len(candidates)} rays differ: {mismatch[:4]}"
 
 
-COVERAGE_BUG = pytest.mark.xfail(strict=True, reason="coverage.vert reads uBvhLeaves, which Renderer._coverage "
-                                                     "leaves at 0: every node of the coverage level is taken for a "
-                                                     "leaf cylinder (drop this mark once fixed)")
-
-
-@pytest.mark.parametrize("n", [126, pytest.param(128, marks=COVERAGE_BUG)])
+@pytest.mark.parametrize("n", [126, 128])
 def test_every_fiber_the_float64_reference_sees_is_drawn(renderer, n):
     """128 containers fill a complete tree (no empty node at the coverage level), 126 leave one empty; the
     coverage pass must mark every pixel a container can cover in both (found on the grooms work, where
@@ -171,6 +166,7 @@ def test_every_fiber_the_float64_reference_sees_is_drawn(renderer, n):
     from app.bench.suites import overlapping_scene
 
     p, scene, cam = overlapping_scene(n, 360)
+    p = p.replace(**{"quality.visibility": "walk"})
     renderer.set_scene(scene)
     size = (160, 90)
     f = renderer.render(p, cam, size, outputs=("ids",), mode="exact")
@@ -185,13 +181,6 @@ def test_every_fiber_the_float64_reference_sees_is_drawn(renderer, n):
     assert not differ.any(), f"{int(differ.sum())} of 300 rays differ ({int((ref.hit & (gpu[:, 0] == 0)).sum())} missed)"
 
 
-SCISSOR_BUG = pytest.mark.xfail(strict=True, reason="Renderer._pass sets ctx.scissor before it binds its own "
-                                                     "targets, so a frame's region sticks to the framebuffer bound "
-                                                     "last (another size's, another renderer's) and clips its later "
-                                                     "frames (drop this mark once fixed)")
-
-
-@SCISSOR_BUG
 def test_a_frame_does_not_depend_on_the_sizes_drawn_before(renderer, ctx):
     """The viewer draws interactive frames smaller than final ones and the benchmarks keep one renderer per
     scene on one context: a frame must be the same whatever was drawn before it."""
@@ -199,6 +188,7 @@ def test_a_frame_does_not_depend_on_the_sizes_drawn_before(renderer, ctx):
     from app.render.renderer import Renderer
 
     p, scene, cam = overlapping_scene(10, 360)
+    p = p.replace(**{"quality.visibility": "walk"})
     renderer.set_scene(scene)
     big, small = (160, 90), (64, 36)
     fresh = renderer.render(p, cam, big, outputs=("ids",), mode="exact")
@@ -214,13 +204,13 @@ def test_a_frame_does_not_depend_on_the_sizes_drawn_before(renderer, ctx):
     other.release_targets()
 
 
-@SCISSOR_BUG
 def test_a_region_draws_only_its_rectangle(renderer):
     """``region=`` (tiled refinement) on a fresh renderer: pixels outside it stay background, inside it
     equal the whole frame's."""
     from app.bench.suites import overlapping_scene
 
     p, scene, cam = overlapping_scene(10, 360)
+    p = p.replace(**{"quality.visibility": "walk"})
     renderer.set_scene(scene)
     size = (160, 90)
     whole = renderer.render(p, cam, size, outputs=("ids",), mode="exact")

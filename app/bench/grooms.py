@@ -94,21 +94,8 @@ def make_subject(ctx, programs: ProgramCache, name: str, size) -> Subject:
     return Subject(name, p, scene, cam, tuple(size), r, t1 - t0, t2 - t1)
 
 
-def neutral_framebuffer(ctx):
-    """Bind a framebuffer of the suite's own before each frame. Renderer._pass sets ctx.scissor before it
-    binds its targets, so the region lands on whatever framebuffer is bound, and with several renderers
-    (sizes) on one context it clipped the next scene's frames (tests/test_groom_walk.py:
-    test_a_frame_does_not_depend_on_the_sizes_drawn_before); bound here, it lands on this one."""
-    fb = getattr(ctx, "_grooms_neutral_fbo", None)
-    if fb is None:
-        fb = ctx.framebuffer(ctx.renderbuffer((1, 1)))
-        ctx._grooms_neutral_fbo = fb
-    fb.use()
-
-
 def work_per_pixel(s: Subject, mode: str) -> Row:
     """Covered fraction and the walk's work per covered pixel, from one cost pass."""
-    neutral_framebuffer(s.renderer.ctx)
     f = s.renderer.render(s.p, s.cam, s.size, outputs=("ids", "cost"), mode=mode)
     covered = int(f.hit.sum())
     per = 1.0 / max(1, covered)
@@ -122,11 +109,11 @@ def work_per_pixel(s: Subject, mode: str) -> Row:
             "unfinished": int(f.unfinished)}
 
 
-def timed_frame(s: Subject, mode: str, sync) -> tuple[float, float, int]:
+def timed_frame(s: Subject, mode: str, sync, visibility: str = "auto") -> tuple[float, float, int]:
     """(wall ms, process CPU ms, draws) of one frame, nothing read back."""
-    neutral_framebuffer(s.renderer.ctx)
+    p = s.p if visibility == "auto" else s.p.replace(**{"quality.visibility": visibility})
     w0, c0 = time.perf_counter(), time.process_time()
-    f = s.renderer.render(s.p, s.cam, s.size, outputs=("draw",), mode=mode)
+    f = s.renderer.render(p, s.cam, s.size, outputs=("draw",), mode=mode)
     sync()
     return (time.perf_counter() - w0) * 1e3, (time.process_time() - c0) * 1e3, f.draws
 
@@ -148,24 +135,30 @@ def run(env, cfg: dict) -> list[Row]:
         row: Row = {"scene": s.name, "segments": s.scene.n_segments, "width": s.size[0], "height": s.size[1],
                     "build_s": round(s.build_s, 3), "upload_s": round(s.upload_s, 3),
                     "scene_gpu_bytes": s.renderer.scene_gpu_bytes}
+        row["visibility"] = s.renderer.visibility(s.p, s.cam, s.size)
         row.update(work_per_pixel(s, "exact"))
         fast = work_per_pixel(s, "fast")
         row.update({f"fast_{k}": fast[k] for k in ("entered_per_px", "tests_per_px", "unfinished")})
         rows_by_name[s.name] = row
-    samples = {(s.name, m): ([], [], []) for s in subjects for m in MODES}
+    # exact and fast as the renderer chooses (quality.visibility auto), and exact the other way, so the
+    # table shows what auto's choice is worth on each scene
+    other = {s.name: "walk" if rows_by_name[s.name]["visibility"] == "proxies" else "proxies" for s in subjects}
+    variants = (*MODES, "other")
+    samples = {(s.name, m): ([], [], []) for s in subjects for m in variants}
     rounds = env.warmup + env.reps
     for k in tqdm(range(rounds), desc="grooms: rounds", unit="round", leave=False):
         for s in (subjects if k % 2 == 0 else subjects[::-1]):
-            for mode in (MODES if k % 2 == 0 else MODES[::-1]):
-                wall, cpu, draws = timed_frame(s, mode, sync)
+            for variant in (variants if k % 2 == 0 else variants[::-1]):
+                mode, visibility = ("exact", other[s.name]) if variant == "other" else (variant, "auto")
+                wall, cpu, draws = timed_frame(s, mode, sync, visibility)
                 if k >= env.warmup:
-                    for series, v in zip(samples[(s.name, mode)], (wall, cpu, draws)):
+                    for series, v in zip(samples[(s.name, variant)], (wall, cpu, draws)):
                         series.append(v)
     for s in subjects:
         row = rows_by_name[s.name]
-        for mode in MODES:
+        for mode in variants:
             wall, cpu, draws = samples[(s.name, mode)]
-            pre = "" if mode == "exact" else "fast_"
+            pre = {"exact": "", "fast": "fast_", "other": "other_"}[mode]
             row[f"{pre}ms"] = round(statistics.median(wall), 3)
             row[f"{pre}cv"] = round(statistics.stdev(wall) / statistics.fmean(wall), 4) if len(wall) > 1 else 0.0
             row[f"{pre}cpu_ms"] = round(statistics.median(cpu), 3)
@@ -179,6 +172,7 @@ def run(env, cfg: dict) -> list[Row]:
     for row in rows_by_name.values():
         if row.get("status") == "skipped":
             continue
+        row["other_x_cpu_ms"] = round(row["other_cpu_ms"] / row["cpu_ms"], 3)
         if row["scene"].startswith("Table 4"):
             ref, keys = t4_lo, ("us_per_covered_px", "cpu_us_per_covered_px")
         else:
@@ -190,16 +184,20 @@ def run(env, cfg: dict) -> list[Row]:
 
 
 COLUMNS = [("scene", "scene"), ("status", "status"), ("segments", "container segments"),
+           ("visibility", "visibility (auto)"),
            ("covered", "covered"), ("entered_per_px", "entered/px"), ("candidates_per_px", "candidates/px"),
            ("steps_per_px", "walk steps/px"), ("tests_per_px", "fiber tests/px"),
            ("walked_per_px", "walk invocations/px"), ("deepest_walk_draws", "deepest pixel's walk draws"),
            ("draws", "draws"),
            ("ms", "ms/frame"), ("cv", "CV"), ("x_ms", "x default"), ("cpu_ms", "CPU ms/frame"),
            ("x_cpu_ms", "CPU x default"), ("fast_ms", "fast ms/frame"), ("x_fast_ms", "fast x default"),
+           ("other_cpu_ms", "the other way: CPU ms/frame"), ("other_x_cpu_ms", "the other way / auto (CPU)"),
            ("us_per_covered_px", "us/covered px"), ("x_us_per_covered_px", "us/px x 10 containers"),
            ("x_cpu_us_per_covered_px", "CPU us/px x 10 containers")]
 
-NOTES = ("ms/frame: exact mode, wall clock, median of the timed rounds; CPU ms/frame: this process's CPU time "
+NOTES = ("visibility: how auto (the default) found each pixel's containers, proxies or the walk "
+         "(renderer.py: proxy_layers); the other way: the same exact frame forced the other way. "
+         "ms/frame: exact mode, wall clock, median of the timed rounds; CPU ms/frame: this process's CPU time "
          "(llvmpipe's threads included) over the same frames; x default: over the default preset's, same round "
          "structure, same process. Per covered pixel (px): the frame's sum over every pixel the walk ran on, "
          "divided by the pixels that show a fiber; entered: containers whose entry the traversal computed "
