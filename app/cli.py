@@ -294,7 +294,7 @@ def cmd_turntable(args) -> int:
 
 def cmd_info(args) -> int:
     from . import reference
-    from .render.renderer import scene_gpu_bytes
+    from .render.renderer import frame_gpu_bytes, scene_gpu_bytes
 
     p, label = resolve_params(args.target or args.preset, args.set)
     scene = build_scene_for(p)
@@ -311,6 +311,8 @@ def cmd_info(args) -> int:
     print(f"fibers/container {lay.fibers_per_container}")
     print(f"fibers           {exact} exact; {thesis:.1f} by the thesis's expression 4.1")
     print(f"scene GPU bytes  {scene_gpu_bytes(scene)} (the same whatever the fiber count)")
+    print(f"per-pixel bytes  {frame_gpu_bytes((1280, 720))} at 1280x720, {frame_gpu_bytes((640, 360))} at 640x360 "
+          "(colour, ids, geometry, walk state: sized by the image alone)")
     if hasattr(scene, "source_info"):
         for line in scene.source_info():
             print(line)

@@ -45,6 +45,14 @@ class ContainerBvh:
         return int(self.nodes.nbytes + self.order.nbytes)
 
 
+def bvh_nbytes(n_segments: int) -> int:
+    """Bytes of the hierarchy over n segments (build_bvh's nodes and order), without building it."""
+    leaves = 1
+    while leaves < n_segments:
+        leaves *= 2
+    return (2 * leaves - 1) * 32 + 4 * max(n_segments, 1)
+
+
 def segment_cylinders(segments: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Each container segment's bounding cylinder, float64: base point a, unit axis ez, length and radius.
     It holds the container's bounding volume of container.glsl (radius max(r0, r1) between the planes
@@ -104,12 +112,12 @@ def median_order(centroids: np.ndarray, leaves: int) -> np.ndarray:
     while size > 1:
         node = np.arange(leaves) // size
         real = slots >= 0
-        c = np.where(real[:, None], centroids[np.maximum(slots, 0)], np.nan)
-        lo = np.full((leaves // size, 3), np.inf)
-        hi = np.full((leaves // size, 3), -np.inf)
-        np.fmin.at(lo, node[real], c[real])
-        np.fmax.at(hi, node[real], c[real])
-        axis = np.argmax(np.nan_to_num(hi - lo, nan=-1.0, posinf=-1.0, neginf=-1.0), axis=1)
+        c = centroids[np.maximum(slots, 0)]
+        # each node's slots are contiguous: its centroid bounds are a reduction over a reshape
+        lo = np.where(real[:, None], c, np.inf).reshape(-1, size, 3).min(1)
+        hi = np.where(real[:, None], c, -np.inf).reshape(-1, size, 3).max(1)
+        spread = np.where(np.isfinite(hi - lo), hi - lo, -1.0)
+        axis = np.argmax(spread, axis=1)
         key = np.where(real, c[np.arange(leaves), axis[node]], np.inf)
         slots = slots[np.lexsort((key, node))]
         size //= 2

@@ -32,7 +32,7 @@ from . import look
 from ..gl.shaders import ProgramCache
 from ..params import ParamError, Params
 from ..scene.containers import SEGMENT_BYTES, Scene
-from .bvh import ContainerBvh, build_bvh
+from .bvh import ContainerBvh, build_bvh, bvh_nbytes
 from .camera import Camera
 
 MAX_RINGS = 64
@@ -800,8 +800,9 @@ def release_framebuffers(parking: moderngl.Framebuffer, targets: dict) -> None:
 
 
 def scene_gpu_bytes(scene: Scene) -> int:
-    """What ``Renderer.set_scene`` allocates for ``scene``: the segments, the hierarchy's boxes and order."""
-    return scene.nbytes + build_bvh(scene).nbytes if scene.n_segments else 80 + 32 + 4
+    """What ``Renderer.set_scene`` allocates for ``scene``: the segments, the hierarchy's boxes and order,
+    the shared proxy rectangle."""
+    return max(scene.nbytes, 80) + bvh_nbytes(scene.n_segments) + _QUAD.nbytes
 
 
 def proxy_layers(scene: Scene, cam: Camera, size: tuple[int, int], grid: int = 64) -> float:
