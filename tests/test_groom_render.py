@@ -271,7 +271,7 @@ def test_cli_renders_and_describes_a_groom_file(tmp_path: Path) -> None:
     for needle in ("strands          100 of 100 in the file", "vertices         1,165",
                    "up axis          file x -> +Z", "segments         3 per guide, 300 containers",
                    "fibers rendered  360,000 = 100 guides x 3,600 per container: 3,600.0 fibers per file strand",
-                   "GPU virtual      24,048 B", "GPU polylines    17,280,000 B"):
+                   "GPU virtual      57,984 B", "GPU polylines    17,280,000 B"):
         assert needle in text, f"{needle!r} not in:\n{text}"
 
 

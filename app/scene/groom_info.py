@@ -82,7 +82,7 @@ def gpu_bytes(scene: Scene, p: Params) -> dict[str, tuple[int, str]]:
 
     try:
         from ..render.renderer import scene_gpu_bytes
-        virtual = (scene_gpu_bytes(scene), "container segments + proxy rectangle (Renderer.set_scene)")
+        virtual = (scene_gpu_bytes(scene), "container segments + their hierarchy + proxy rectangle (Renderer.set_scene)")
     except ImportError:
         virtual = (scene.nbytes, "container segments")
     _, fibers = reference.fiber_count(p, scene.n_guides)
