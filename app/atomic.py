@@ -21,6 +21,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 STALE_UNKNOWN_S = 3600  # a temporary file without a pid (older vfiber) is stale after an hour
+_active: set[str] = set()  # temporary files being written now, for remove_active_temporaries
 
 
 class SaveError(OSError):
@@ -46,7 +47,8 @@ def save_target(path: str | os.PathLike[str]) -> Path:
         mode = target.stat().st_mode
         if not stat.S_ISREG(mode):
             raise SaveError(path, "is not a regular file: not replaced", errno.EINVAL)
-        if not os.access(target, os.W_OK):
+        # no write bit at all is a person's "do not overwrite", which root's access() would ignore
+        if not os.access(target, os.W_OK) or not mode & 0o222:
             raise SaveError(path, f"is read-only (mode {stat.S_IMODE(mode):04o}): not overwritten; make it "
                                   "writable (chmod u+w) or save under another name", errno.EACCES)
     folder = target.parent if str(target.parent) else Path(".")
@@ -69,6 +71,7 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     except OSError as e:
         raise SaveError(asked, f"cannot write in folder {directory}: {e.strerror or e}", e.errno) from None
     os.close(fd)
+    _active.add(tmp)
     try:
         yield Path(tmp)
         with open(tmp, "rb+") as f:
@@ -91,7 +94,18 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
             raise SaveError(asked, f"cannot be written ({e.strerror or e}); any old file is kept",
                             e.errno) from None
         raise
+    finally:
+        _active.discard(tmp)
     _fsync_dir(directory)  # make the rename itself durable
+
+
+def remove_active_temporaries() -> None:
+    """Remove the temporary files of saves under way: for a process about to exit at once (Ctrl-C)."""
+    for tmp in list(_active):
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
 
 
 def atomic_write_text(path: str | os.PathLike[str], text: str) -> Path:

@@ -20,6 +20,7 @@ from .params import ParamError, Params, parse_assignment
 GROOM_SUFFIXES = (".hair", ".data", ".tfx", ".ply")
 OUTPUTS = ("shaded", "id", "depth", "normal", "ring", "cost")
 DEFAULT_PRESET = "default"
+IMAGE_SUFFIXES = (".npy", ".exr", ".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")  # what write_output writes
 
 
 class UsageError(ValueError):
@@ -44,7 +45,7 @@ def resolve_params(target: str | None, assignments: list[str]) -> tuple[Params, 
         name = target or (DEFAULT_PRESET if DEFAULT_PRESET in bundled_names() else None)
         if name:
             preset = find_preset(name)
-            values = dict(preset.params.values)
+            values = groom_relative_to_preset(dict(preset.params.values), preset.path)
             label = str(preset.path or name)
     for text in assignments:
         key, value = parse_assignment(text)
@@ -55,6 +56,77 @@ def resolve_params(target: str | None, assignments: list[str]) -> tuple[Params, 
         if assignments and e.source is None:
             raise ParamError(e.bare, key=e.key, source="--set") from None
         raise
+
+
+def groom_relative_to_preset(values: dict, preset_path: Path | None) -> dict:
+    """A relative ``scene.groom_file`` in a preset names a file beside the preset, wherever vfiber runs."""
+    groom = values.get("scene.groom_file") or ""
+    if groom and preset_path is not None and not Path(groom).is_absolute():
+        values["scene.groom_file"] = str(Path(preset_path).parent / groom)
+    return values
+
+
+def scene_target(args) -> str | None:
+    """The positional target or --preset; both at once must agree (else one would be silently ignored)."""
+    if args.target and args.preset and args.target != args.preset:
+        raise UsageError(f"two scenes given: {args.target!r} and --preset {args.preset!r}; give one")
+    return args.target or args.preset
+
+
+def source_of(key: str | None, assignments: list[str], label: str) -> str:
+    """Where a parameter came from, for errors raised after Params were built (the renderer's)."""
+    if key and any(a.split("=", 1)[0].strip() == key for a in assignments):
+        return "--set"
+    return label
+
+
+def check_output_path(out: Path) -> None:
+    """Before any work: the output's folder exists and the file may be replaced (not a folder, not
+    read-only), so a long render never ends in 'cannot write'."""
+    from .atomic import SaveError, save_target
+
+    if out.suffix.lower() not in IMAGE_SUFFIXES:
+        raise UsageError(f"{out}: unknown image type {out.suffix.lower()!r}; use .png, .exr or .npy")
+    try:
+        save_target(out)
+    except SaveError as e:
+        raise UsageError(f"-o {e}") from None
+
+
+def check_budget(p: Params, size: tuple[int, int], allow_slow: bool, scene=None):
+    """Refuse, with the estimate and how to go on, work that would take minutes or more memory than a
+    frame should; before the scene is built (scene None) only its build and the frame's memory are known.
+    Returns the frame's WorkEstimate once the scene is given."""
+    from .render import budget
+    from .units import human_bytes
+
+    how = "add --allow-slow to run it anyway"
+    if scene is None:
+        seconds = budget.build_seconds(p)
+        if seconds > budget.SLOW_SECONDS and not allow_slow:
+            raise UsageError(f"building {p['scene.count']:,} guides x {p['scene.segments']} segments takes roughly "
+                             f"{budget._duration(seconds)} before the first pixel; lower scene.count or "
+                             f"scene.segments, or {how}")
+        need = budget.frame_bytes(size)
+        if need > budget.MAX_FRAME_BYTES and not allow_slow:
+            raise UsageError(f"--size {size[0]}x{size[1]} needs about {human_bytes(need)} of memory for one frame "
+                             f"(limit {human_bytes(budget.MAX_FRAME_BYTES)}); render smaller, or {how}")
+        return None
+    est = budget.estimate(p, scene, size)
+    if est.slow and not allow_slow:
+        raise UsageError(f"this frame is {est.summary()}; lower the image size, quality.supersample or the "
+                         f"fiber density, or {how}")
+    return est
+
+
+def _gl_allocation_error(e: Exception, size: tuple[int, int]) -> UsageError | None:
+    text = str(e)
+    if isinstance(e, UsageError):
+        return None
+    if "framebuffer" in text.lower() or "out of memory" in text.lower() or isinstance(e, MemoryError):
+        return UsageError(f"--size {size[0]}x{size[1]}: this OpenGL cannot allocate a frame that large "
+                          f"({text.strip().splitlines()[0] if text.strip() else type(e).__name__}); render smaller")
+    return None
 
 
 def parse_budget(text: str) -> int:
@@ -140,20 +212,47 @@ def build_scene_for(p: Params):
 
 
 def cmd_render(args) -> int:
-    from .gl.context import create_headless
-    from .render.camera import Camera
-    from .render.renderer import Renderer
-
-    p, label = resolve_params(args.target or args.preset, args.set)
+    p, label = resolve_params(scene_target(args), args.set)
     if args.mode:
         p = p.replace(**{"quality.mode": args.mode})
     size = parse_size(args.size)
     out = Path(args.output_file)
     if not out.parent.exists():
         raise UsageError(f"{out}: folder {out.parent} does not exist")
+    check_output_path(out)
     kind = args.output
     t0 = time.perf_counter()
+    check_budget(p, size, args.allow_slow)
     scene = build_scene_for(p)
+    est = check_budget(p, size, args.allow_slow, scene) if args.method == "virtual" else None
+    if est is not None and est.seconds > LONG_RENDER_S:
+        print(f"vfiber: rendering {out.name}: {est.summary()}", file=sys.stderr, flush=True)
+    try:
+        # Ctrl-C: Python raises KeyboardInterrupt once the GL driver returns (moderngl holds the GIL
+        # during a draw); the output is written whole or not at all (app.atomic), so nothing partial stays.
+        return _render_and_write(args, p, label, size, out, kind, scene, t0)
+    except ParamError as e:  # the renderer's (quality.msaa the driver cannot do): say where the value came from
+        if e.source is None:
+            raise ParamError(e.bare, key=e.key, source=source_of(e.key, args.set, label)) from None
+        raise
+    except KeyboardInterrupt:
+        print(f"vfiber: interrupted: {out} was not written", file=sys.stderr)
+        return 130
+    except Exception as e:  # noqa: BLE001 - a frame GL cannot allocate is a size problem, said so
+        better = _gl_allocation_error(e, size)
+        if better is None:
+            raise
+        raise better from None
+
+
+LONG_RENDER_S = 5.0  # renders estimated longer than this announce themselves with the estimate
+
+
+def _render_and_write(args, p, label, size, out, kind, scene, t0) -> int:
+    from .gl.context import create_headless
+    from .render.camera import Camera
+    from .render.renderer import Renderer
+
     wanted = {"shaded": ("color",), "id": ("ids",), "ring": ("ids",), "depth": ("geom",),
               "normal": ("geom",), "cost": ("cost",)}[kind]
     with create_headless() as gl:
@@ -186,7 +285,7 @@ def cmd_info(args) -> int:
     from . import reference
     from .render.renderer import scene_gpu_bytes
 
-    p, label = resolve_params(args.target or args.preset, args.set)
+    p, label = resolve_params(scene_target(args), args.set)
     scene = build_scene_for(p)
     thesis, exact = reference.fiber_count(p, scene.n_segments and scene.n_guides or 0)
     lay = reference.ring_layout(p)
@@ -262,6 +361,8 @@ def make_parser() -> argparse.ArgumentParser:
     r.add_argument("-o", dest="output_file", required=True, help="output file: .png, .exr or .npy")
     r.add_argument("--method", choices=("virtual", "explicit"), default="virtual",
                    help="virtual fibers in containers (default) or the conventional explicit strands")
+    r.add_argument("--allow-slow", action="store_true",
+                   help="render even when the estimate says the frame takes over a minute or over 4 GiB")
     r.add_argument("--explicit-budget", type=parse_budget, default=None, metavar="BYTES",
                    help="GPU bytes the explicit method may use before it refuses (default 1GiB)")
     r.set_defaults(func=cmd_render)
@@ -327,6 +428,8 @@ def describe_error(e: Exception) -> str:
         expected += (GroomError,)
     except ImportError:
         pass
+    from .atomic import SaveError
+    expected += (SaveError,)
     if isinstance(e, expected):
         return str(e)
     return f"unexpected error: {type(e).__name__}: {e} (run with VFIBER_DEBUG=1 for the traceback)"
