@@ -114,9 +114,6 @@ def atomic_write_text(path: str | os.PathLike[str], text: str) -> Path:
     return Path(path)
 
 
-_TEMP_NAME = re.compile(r"^\.(?P<name>.+)\.(?:(?P<pid>\d+)\.)?[A-Za-z0-9_]{8}\.tmp$")
-
-
 def remove_stale_temporaries(path: str | os.PathLike[str]) -> list[Path]:
     """Remove the temporary files earlier saves of ``path`` left when they were killed: those whose
     process no longer runs (or, without a pid in the name, older than STALE_UNKNOWN_S). Returns them."""
@@ -127,9 +124,10 @@ def remove_stale_temporaries(path: str | os.PathLike[str]) -> list[Path]:
         candidates = list(directory.glob(f".{glob_escape(path.name)}.*.tmp"))
     except OSError:
         return removed
+    pattern = re.compile(rf"^\.{re.escape(path.name)}\.(?:(?P<pid>\d+)\.)?[A-Za-z0-9_]{{8}}\.tmp$")
     for tmp in candidates:
-        m = _TEMP_NAME.match(tmp.name)
-        if not m or m["name"] != path.name:
+        m = pattern.match(tmp.name)
+        if not m:
             continue
         try:
             stale = (not _alive(int(m["pid"]))) if m["pid"] else \
