@@ -227,22 +227,78 @@ def cmd_render(args) -> int:
     est = check_budget(p, size, args.allow_slow, scene) if args.method == "virtual" else None
     if est is not None and est.seconds > LONG_RENDER_S:
         print(f"vfiber: rendering {out.name}: {est.summary()}", file=sys.stderr, flush=True)
+
+    def render() -> int:
+        try:
+            return _render_and_write(args, p, label, size, out, kind, scene, t0)
+        except ParamError as e:  # the renderer's (quality.msaa the driver cannot do): say where it came from
+            if e.source is None:
+                raise ParamError(e.bare, key=e.key, source=source_of(e.key, args.set, label)) from None
+            raise
+        except Exception as e:  # noqa: BLE001 - a frame GL cannot allocate is a size problem, said so
+            better = _gl_allocation_error(e, size)
+            if better is None:
+                raise
+            raise better from None
+
+    if _interactive():
+        return _in_child(render, out)
     try:
-        # Ctrl-C: Python raises KeyboardInterrupt once the GL driver returns (moderngl holds the GIL
-        # during a draw); the output is written whole or not at all (app.atomic), so nothing partial stays.
-        return _render_and_write(args, p, label, size, out, kind, scene, t0)
-    except ParamError as e:  # the renderer's (quality.msaa the driver cannot do): say where the value came from
-        if e.source is None:
-            raise ParamError(e.bare, key=e.key, source=source_of(e.key, args.set, label)) from None
-        raise
+        # Not at a terminal: Ctrl-C raises KeyboardInterrupt once the GL driver returns; the output is
+        # written whole or not at all (app.atomic), so nothing partial stays either way.
+        return render()
     except KeyboardInterrupt:
         print(f"vfiber: interrupted: {out} was not written", file=sys.stderr)
         return 130
-    except Exception as e:  # noqa: BLE001 - a frame GL cannot allocate is a size problem, said so
-        better = _gl_allocation_error(e, size)
-        if better is None:
-            raise
-        raise better from None
+
+
+def _interactive() -> bool:
+    """At a terminal, where Ctrl-C is how a person stops a render (and where nothing captures sys.stdout)."""
+    try:
+        return hasattr(os, "fork") and sys.stdin.isatty() and not os.environ.get("VFIBER_NO_FORK")
+    except (ValueError, OSError):
+        return False
+
+
+def _in_child(render, out: Path) -> int:
+    """Run ``render`` in a forked child and wait for it. moderngl holds the GIL while llvmpipe draws, so a
+    KeyboardInterrupt in the rendering process would wait for the whole frame; the waiting parent gets it
+    at once, kills the child and removes its temporary file: Ctrl-C stops cleanly, with no output."""
+    import signal
+
+    sys.stdout.flush()
+    sys.stderr.flush()
+    pid = os.fork()
+    if pid == 0:  # the child: Ctrl-C is the parent's to handle
+        code = 2
+        try:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+            code = render()
+        except BaseException as e:  # noqa: BLE001 - the child reports like main() and exits
+            if os.environ.get("VFIBER_DEBUG"):
+                import traceback
+                traceback.print_exc()
+            else:
+                print(f"vfiber: {describe_error(e)}", file=sys.stderr)
+        finally:
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(code)
+    try:
+        _, status = os.waitpid(pid, 0)
+    except KeyboardInterrupt:
+        os.kill(pid, signal.SIGKILL)
+        os.waitpid(pid, 0)
+        from .atomic import remove_stale_temporaries
+        remove_stale_temporaries(out)
+        print(f"\nvfiber: interrupted: {out} was not written", file=sys.stderr)
+        return 130
+    code = os.waitstatus_to_exitcode(status)
+    if code < 0:
+        print(f"vfiber: the render process died of signal {-code} (a GL driver crash?); {out} was not written; "
+              "run vfiber doctor", file=sys.stderr)
+        return 2
+    return code
 
 
 LONG_RENDER_S = 5.0  # renders estimated longer than this announce themselves with the estimate

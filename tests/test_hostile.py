@@ -458,3 +458,31 @@ def test_any_valid_look_has_a_finite_estimate(rings, step, curl, twist, ellipsoi
     _SMALL_SCENE = _SMALL_SCENE or build_scene(Params())
     est = budget.estimate(p, _SMALL_SCENE, (w, h))
     assert math.isfinite(est.seconds) and est.seconds >= 0 and est.fiber_tests >= 0
+
+
+def test_ctrl_c_at_a_terminal_stops_a_render_at_once_and_leaves_nothing(tmp_path):
+    """At a terminal the render runs in a child; Ctrl-C (SIGINT) reaches the waiting parent, which kills it
+    and removes its temporary file: exit 130 within a second, no output, no .tmp, no process left."""
+    import pty
+    import signal
+    import time
+
+    _, terminal = pty.openpty()
+    out = tmp_path / "slow.png"
+    cmd = [sys.executable, "-m", "app.cli", "render", "--set", "shape.ellipsoid=1", "--set",
+           "quality.supersample=4", "--set", "look.self_shadow=traced", "--size", "160x90", "--allow-slow",
+           "-o", str(out)]
+    child = subprocess.Popen(cmd, stdin=terminal, stderr=subprocess.PIPE, text=True, cwd=ROOT,
+                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    deadline = time.time() + 30
+    while "rendering" not in (line := child.stderr.readline()) and time.time() < deadline:
+        pass                                      # the estimate line: the render is under way
+    time.sleep(0.5)
+    t0 = time.perf_counter()
+    child.send_signal(signal.SIGINT)
+    try:
+        err = child.communicate(timeout=20)[1]
+    finally:
+        child.kill()
+    assert child.returncode == 130 and time.perf_counter() - t0 < 5, err
+    assert "was not written" in err and list(tmp_path.iterdir()) == []
