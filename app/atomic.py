@@ -89,8 +89,7 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         if isinstance(e, OSError) and not isinstance(e, SaveError):
             if e.errno == errno.ENOSPC:
                 raise SaveError(asked, f"the disk is full ({e.strerror}): nothing was written, any old file "
-                                "is kept",
-                                e.errno) from None
+                                       "is kept", e.errno) from None
             raise SaveError(asked, f"cannot be written ({e.strerror or e}); any old file is kept",
                             e.errno) from None
         raise
