@@ -21,6 +21,7 @@ from .params import BY_KEY, ParamError, Params, parse_assignment
 GROOM_SUFFIXES = (".hair", ".data", ".tfx", ".ply")
 OUTPUTS = ("shaded", "id", "depth", "normal", "ring", "cost")
 DEFAULT_PRESET = "default"
+IMAGE_SUFFIXES = (".npy", ".exr", ".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")  # what write_output writes
 
 
 class UsageError(ValueError):
@@ -45,7 +46,7 @@ def resolve_params(target: str | None, assignments: list[str]) -> tuple[Params, 
         name = target or (DEFAULT_PRESET if DEFAULT_PRESET in bundled_names() else None)
         if name:
             preset = find_preset(name)
-            values = dict(preset.params.values)
+            values = groom_relative_to_preset(dict(preset.params.values), preset.path)
             label = str(preset.path or name)
     for text in assignments:
         key, value = parse_cli_assignment(text)
@@ -73,6 +74,77 @@ def _tuple_hint(key: str | None) -> str:
     if key in BY_KEY and BY_KEY[key].kind is tuple:
         return f" (write it as {key}=0.8,0.5,0.3 or {key}=[0.8,0.5,0.3])"
     return ""
+
+
+def groom_relative_to_preset(values: dict, preset_path: Path | None) -> dict:
+    """A relative ``scene.groom_file`` in a preset names a file beside the preset, wherever vfiber runs."""
+    groom = values.get("scene.groom_file") or ""
+    if groom and preset_path is not None and not Path(groom).is_absolute():
+        values["scene.groom_file"] = str(Path(preset_path).parent / groom)
+    return values
+
+
+def scene_target(args) -> str | None:
+    """The positional target or --preset; both at once must agree (else one would be silently ignored)."""
+    if args.target and args.preset and args.target != args.preset:
+        raise UsageError(f"two scenes given: {args.target!r} and --preset {args.preset!r}; give one")
+    return args.target or args.preset
+
+
+def source_of(key: str | None, assignments: list[str], label: str) -> str:
+    """Where a parameter came from, for errors raised after Params were built (the renderer's)."""
+    if key and any(a.split("=", 1)[0].strip() == key for a in assignments):
+        return "--set"
+    return label
+
+
+def check_output_path(out: Path) -> None:
+    """Before any work: the output's folder exists and the file may be replaced (not a folder, not
+    read-only), so a long render never ends in 'cannot write'."""
+    from .atomic import SaveError, save_target
+
+    if out.suffix.lower() not in IMAGE_SUFFIXES:
+        raise UsageError(f"{out}: unknown image type {out.suffix.lower()!r}; use .png, .exr or .npy")
+    try:
+        save_target(out)
+    except SaveError as e:
+        raise UsageError(f"-o {e}") from None
+
+
+def check_budget(p: Params, size: tuple[int, int], allow_slow: bool, scene=None):
+    """Refuse, with the estimate and how to go on, work that would take minutes or more memory than a
+    frame should; before the scene is built (scene None) only its build and the frame's memory are known.
+    Returns the frame's WorkEstimate once the scene is given."""
+    from .render import budget
+    from .units import human_bytes
+
+    how = "add --allow-slow to run it anyway"
+    if scene is None:
+        seconds = budget.build_seconds(p)
+        if seconds > budget.SLOW_SECONDS and not allow_slow:
+            raise UsageError(f"building {p['scene.count']:,} guides x {p['scene.segments']} segments takes roughly "
+                             f"{budget._duration(seconds)} before the first pixel; lower scene.count or "
+                             f"scene.segments, or {how}")
+        need = budget.frame_bytes(size)
+        if need > budget.MAX_FRAME_BYTES and not allow_slow:
+            raise UsageError(f"--size {size[0]}x{size[1]} needs about {human_bytes(need)} of memory for one frame "
+                             f"(limit {human_bytes(budget.MAX_FRAME_BYTES)}); render smaller, or {how}")
+        return None
+    est = budget.estimate(p, scene, size)
+    if est.slow and not allow_slow:
+        raise UsageError(f"this frame is {est.summary()}; lower the image size, quality.supersample or the "
+                         f"fiber density, or {how}")
+    return est
+
+
+def _gl_allocation_error(e: Exception, size: tuple[int, int]) -> UsageError | None:
+    text = str(e)
+    if isinstance(e, UsageError):
+        return None
+    if "framebuffer" in text.lower() or "out of memory" in text.lower() or isinstance(e, MemoryError):
+        return UsageError(f"--size {size[0]}x{size[1]}: this OpenGL cannot allocate a frame that large "
+                          f"({text.strip().splitlines()[0] if text.strip() else type(e).__name__}); render smaller")
+    return None
 
 
 def parse_budget(text: str) -> int:
@@ -176,20 +248,16 @@ def build_scene_for(p: Params):
 
 
 def cmd_render(args) -> int:
-    from .gl.context import create_headless
-    from .render.camera import Camera
-    from .render.renderer import Renderer
-    from .render.tiled import TILED_ABOVE_PIXELS, print_progress, render_tiled
-
     if args.variant:
         return cmd_contact_sheet(args)
-    p, label = resolve_params(args.target or args.preset, args.set)
+    p, label = resolve_params(scene_target(args), args.set)
     if args.mode:
         p = p.replace(**{"quality.mode": args.mode})
     size = parse_size(args.size)
     out = Path(args.output_file)
     if not out.parent.exists():
         raise UsageError(f"{out}: folder {out.parent} does not exist")
+    check_output_path(out)
     kind = args.output
     if args.alpha and kind != "shaded":
         raise UsageError(f"--alpha writes the shaded picture's coverage; --output {kind} has no alpha")
@@ -198,7 +266,94 @@ def cmd_render(args) -> int:
     if args.alpha and args.method == "explicit":
         raise UsageError("--alpha needs the virtual method's coverage; the explicit baseline has none")
     t0 = time.perf_counter()
+    check_budget(p, size, args.allow_slow)
     scene = build_scene_for(p)
+    est = check_budget(p, size, args.allow_slow, scene) if args.method == "virtual" else None
+    if est is not None and est.seconds > LONG_RENDER_S:
+        print(f"vfiber: rendering {out.name}: {est.summary()}", file=sys.stderr, flush=True)
+
+    def render() -> int:
+        try:
+            return _render_and_write(args, p, label, size, out, kind, scene, t0)
+        except ParamError as e:  # the renderer's (quality.msaa the driver cannot do): say where it came from
+            if e.source is None:
+                raise ParamError(e.bare, key=e.key, source=source_of(e.key, args.set, label)) from None
+            raise
+        except Exception as e:  # noqa: BLE001 - a frame GL cannot allocate is a size problem, said so
+            better = _gl_allocation_error(e, size)
+            if better is None:
+                raise
+            raise better from None
+
+    if _interactive():
+        return _in_child(render, out)
+    try:
+        # Not at a terminal: Ctrl-C raises KeyboardInterrupt once the GL driver returns; the output is
+        # written whole or not at all (app.atomic), so nothing partial stays either way.
+        return render()
+    except KeyboardInterrupt:
+        print(f"vfiber: interrupted: {out} was not written", file=sys.stderr)
+        return 130
+
+
+def _interactive() -> bool:
+    """At a terminal, where Ctrl-C is how a person stops a render (and where nothing captures sys.stdout)."""
+    try:
+        return hasattr(os, "fork") and sys.stdin.isatty() and not os.environ.get("VFIBER_NO_FORK")
+    except (ValueError, OSError):
+        return False
+
+
+def _in_child(render, out: Path) -> int:
+    """Run ``render`` in a forked child and wait for it. moderngl holds the GIL while llvmpipe draws, so a
+    KeyboardInterrupt in the rendering process would wait for the whole frame; the waiting parent gets it
+    at once, kills the child and removes its temporary file: Ctrl-C stops cleanly, with no output."""
+    import signal
+
+    sys.stdout.flush()
+    sys.stderr.flush()
+    pid = os.fork()
+    if pid == 0:  # the child: Ctrl-C is the parent's to handle
+        code = 2
+        try:
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+            code = render()
+        except BaseException as e:  # noqa: BLE001 - the child reports like main() and exits
+            if os.environ.get("VFIBER_DEBUG"):
+                import traceback
+                traceback.print_exc()
+            else:
+                print(f"vfiber: {describe_error(e)}", file=sys.stderr)
+        finally:
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os._exit(code)
+    try:
+        _, status = os.waitpid(pid, 0)
+    except KeyboardInterrupt:
+        os.kill(pid, signal.SIGKILL)
+        os.waitpid(pid, 0)
+        from .atomic import remove_stale_temporaries
+        remove_stale_temporaries(out)
+        print(f"\nvfiber: interrupted: {out} was not written", file=sys.stderr)
+        return 130
+    code = os.waitstatus_to_exitcode(status)
+    if code < 0:
+        print(f"vfiber: the render process died of signal {-code} (a GL driver crash?); {out} was not written; "
+              "run vfiber doctor", file=sys.stderr)
+        return 2
+    return code
+
+
+LONG_RENDER_S = 5.0  # renders estimated longer than this announce themselves with the estimate
+
+
+def _render_and_write(args, p, label, size, out, kind, scene, t0) -> int:
+    from .gl.context import create_headless
+    from .render.camera import Camera
+    from .render.renderer import Renderer
+    from .render.tiled import TILED_ABOVE_PIXELS, print_progress, render_tiled
+
     wanted = {"shaded": ("color",), "id": ("ids",), "ring": ("ids",), "depth": ("geom",),
               "normal": ("geom",), "cost": ("cost",)}[kind]
     with create_headless() as gl:
@@ -296,7 +451,7 @@ def cmd_info(args) -> int:
     from . import reference
     from .render.renderer import frame_gpu_bytes, scene_gpu_bytes
 
-    p, label = resolve_params(args.target or args.preset, args.set)
+    p, label = resolve_params(scene_target(args), args.set)
     scene = build_scene_for(p)
     thesis, exact = reference.fiber_count(p, scene.n_segments and scene.n_guides or 0)
     lay = reference.ring_layout(p)
@@ -397,6 +552,8 @@ def make_parser() -> argparse.ArgumentParser:
     r.add_argument("-o", dest="output_file", required=True, help="output file: .png, .exr or .npy")
     r.add_argument("--method", choices=("virtual", "explicit"), default="virtual",
                    help="virtual fibers in containers (default) or the conventional explicit strands")
+    r.add_argument("--allow-slow", action="store_true",
+                   help="render even when the estimate says the frame takes over a minute or over 4 GiB")
     r.add_argument("--explicit-budget", type=parse_budget, default=None, metavar="BYTES",
                    help="GPU bytes the explicit method may use before it refuses (default 1GiB)")
     r.add_argument("--alpha", action="store_true",
@@ -486,6 +643,8 @@ def describe_error(e: Exception) -> str:
         expected += (GroomError,)
     except ImportError:
         pass
+    from .atomic import SaveError
+    expected += (SaveError,)
     if isinstance(e, expected):
         return str(e)
     return f"unexpected error: {type(e).__name__}: {e} (run with VFIBER_DEBUG=1 for the traceback)"

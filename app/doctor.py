@@ -43,27 +43,29 @@ def _versions() -> list[str]:
     return lines
 
 
-def _backends(mesa: list[str]) -> list[str]:
-    from app.gl.context import BACKENDS, ENV_BACKEND, GLContextError, create_headless
+def _backends(mesa: list[str], working: list[str]) -> list[str]:
+    """Every backend, each probed in a child process: a driver that segfaults (GALLIUM_DRIVER naming a
+    driver that does not exist makes OSMesa do that) costs one line of the report, not the report."""
+    from app.gl.context import BACKENDS, ENV_BACKEND, probe_backend
 
-    lines, working = [], []
+    lines = []
     for name in BACKENDS:
-        try:
-            hc = create_headless(backend=name)
-        except GLContextError as exc:
-            lines.append(_line(name, f"no: {exc}"))
+        probe = probe_backend(name)
+        if not probe.ok:
+            lines.append(_line(name, f"no: {probe.detail}"))
             continue
-        lines.append(_line(name, f"ok: {hc.renderer}, OpenGL {hc.version}"))
+        lines.append(_line(name, f"ok: {probe.detail}"))
         working.append(name)
-        found = re.search(r"Mesa (\S+)", hc.version)
+        found = re.search(r"Mesa (\S+)", probe.version)
         if found and not mesa:
             mesa.append(found[1])
-        hc.release()
 
     forced = os.environ.get(ENV_BACKEND, "").strip().lower()
     if forced:
         state = "works" if forced in working else "does NOT work"
         lines.append(_line("chosen", f"{forced}, forced by {ENV_BACKEND}={forced} ({state})"))
+        if forced not in working:
+            working.clear()  # renders will use the forced backend only
     elif working:
         why = "the first in auto order" if working[0] == BACKENDS[0] else f"{BACKENDS[0]} failed"
         lines.append(_line("chosen", f"{working[0]} ({why}: {' -> '.join(BACKENDS)})"))
@@ -114,12 +116,14 @@ def _mesa(mesa: list[str]) -> list[str]:
     return [_line("mesa", version + package)]
 
 
-def doctor_report() -> list[str]:
-    """One line per fact, for people and for bug reports. Never raises."""
+def doctor_report(working: list[str] | None = None) -> list[str]:
+    """One line per fact, for people and for bug reports. Never raises. ``working`` collects the backends
+    that work (for the exit status)."""
     mesa: list[str] = []
+    working = [] if working is None else working
     lines = ["vfiber doctor"]
     lines += _fenced(_versions, "versions")
-    lines += _fenced(lambda: _backends(mesa), "backends")
+    lines += _fenced(lambda: _backends(mesa, working), "backends")
     lines += _fenced(_display, "display")
     lines += _fenced(_glslang, "glslang")
     lines += _fenced(lambda: _mesa(mesa), "mesa")
@@ -127,8 +131,10 @@ def doctor_report() -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    print("\n".join(doctor_report()))
-    return 0
+    """Exit 0 when some backend works (renders can run), 1 when none does."""
+    working: list[str] = []
+    print("\n".join(doctor_report(working)), flush=True)
+    return 0 if working else 1
 
 
 if __name__ == "__main__":

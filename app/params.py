@@ -297,6 +297,12 @@ def check_relations(p: Params) -> None:
             f"{max_fiber_radius(rings):g} (0.5 / rings)", key="fibers.fiber_radius")
     if p["scene.generator"] == "groom" and not p["scene.groom_file"]:
         raise ParamError("scene.generator = 'groom' needs scene.groom_file", key="scene.groom_file")
+    if "\0" in p["scene.groom_file"]:
+        raise ParamError("scene.groom_file contains a NUL byte, which no file name can", key="scene.groom_file")
+    near, far = p["camera.near"], p["camera.far"]
+    if near and far and near >= far:
+        raise ParamError(f"camera.near = {near:g} must be less than camera.far = {far:g} (or set either to 0 "
+                         "for automatic)", key="camera.near")
 
 
 def parse_assignment(text: str) -> tuple[str, Any]:
@@ -307,9 +313,14 @@ def parse_assignment(text: str) -> tuple[str, Any]:
         raise ParamError(f"--set {text!r}: expected key=value, e.g. fibers.rings=20", source="--set")
     key, raw = (s.strip() for s in text.split("=", 1))
     if key not in BY_KEY:
-        raise ParamError(f"unknown parameter {key!r}{suggest(key)}", key=key, source="--set")
+        hint = suggest(key) if len(key) <= 100 else ""  # a 2,000-part key needs no "did you mean"
+        raise ParamError(f"unknown parameter {short_repr(key)}{hint}", key=key[:100], source="--set")
     try:
         value = tomllib.loads(f"v = {raw}")["v"]
     except tomllib.TOMLDecodeError:
         value = raw  # a bare word such as fast or carpet
+    except (ValueError, RecursionError):  # int()'s 4300-digit limit escapes tomllib; so does deep nesting
+        raise ParamError(f"{key} = {short_repr(raw)} is not allowed: a number thousands of digits long or a "
+                         f"value nested too deeply; expected {BY_KEY[key].allowed()}", key=key,
+                         source="--set") from None
     return key, value

@@ -30,6 +30,7 @@ import difflib
 import importlib.resources
 import os
 import re
+import stat
 import sys
 import tomllib
 from dataclasses import dataclass
@@ -46,6 +47,8 @@ PRESET_VERSION = 2
 TOP_LEVEL = ("version", "name", "description")  # scalars allowed above the tables
 DOCS_PATH = Path(__file__).resolve().parents[1] / "docs" / "parameters.md"
 _SHORT = 60  # longest value repr quoted in a message; a 10 000-element array would bury the point
+MAX_PRESET_BYTES = 1024 * 1024  # a full preset is ~5 KB; a larger file is the wrong file, not a look
+MAX_PROBLEMS = 20  # problems described per preset; the rest are counted
 
 
 class PresetError(ParamError):
@@ -169,16 +172,49 @@ class _Locator:
 def load_preset(path: str | os.PathLike[str]) -> Preset:
     """Read and validate a preset file; raise PresetError (never anything else) if it is unusable."""
     path = Path(path)
-    try:
-        data = path.read_bytes()
-    except OSError as e:
-        raise PresetError(f"cannot read the preset: {e.strerror or e}", source=str(path)) from None
+    data = _read_preset_bytes(path)
     preset = loads_preset(data, source=str(path))
     return Preset(preset.name or path.stem, preset.description, preset.params, path)
 
 
+def _read_preset_bytes(path: Path) -> bytes:
+    """The file's bytes, refusing what is not a regular file (a FIFO would block, a device never end) and
+    reading at most one byte past MAX_PRESET_BYTES."""
+    try:
+        info = path.stat()
+        if not stat.S_ISREG(info.st_mode):
+            raise PresetError(f"cannot read the preset: it is {_file_kind(info.st_mode)}, not a regular file",
+                              source=str(path))
+        if info.st_size > MAX_PRESET_BYTES:
+            raise PresetError(_too_big(info.st_size), source=str(path))
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
+        with os.fdopen(fd, "rb") as f:
+            data = f.read(MAX_PRESET_BYTES + 1)  # at most 1 MiB: cheap to preallocate
+    except OSError as e:
+        raise PresetError(f"cannot read the preset: {e.strerror or e}", source=str(path)) from None
+    if len(data) > MAX_PRESET_BYTES:
+        raise PresetError(_too_big(len(data)), source=str(path))
+    return data
+
+
+def _too_big(size: int) -> str:
+    return (f"{size} bytes is larger than the {MAX_PRESET_BYTES}-byte limit for presets (a full preset is "
+            "about 5 KB): is this the right file?")
+
+
+def _file_kind(mode: int) -> str:
+    for test, what in ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO (named pipe)"),
+                       (stat.S_ISSOCK, "a socket"), (stat.S_ISCHR, "a character device"),
+                       (stat.S_ISBLK, "a block device")):
+        if test(mode):
+            return what
+    return "not a regular file"
+
+
 def loads_preset(data: str | bytes, source: str = "<preset>") -> Preset:
     """Parse preset text (or bytes); ``source`` names it in messages."""
+    if len(data) > MAX_PRESET_BYTES:
+        raise PresetError(_too_big(len(data)), source=source)
     if isinstance(data, bytes):
         try:
             text = data.decode("utf-8-sig")  # tolerate the BOM some Windows editors write
@@ -193,12 +229,16 @@ def loads_preset(data: str | bytes, source: str = "<preset>") -> Preset:
     except tomllib.TOMLDecodeError as e:
         raise _syntax_error(e, text, source) from None
     except RecursionError:
-        raise PresetError("TOML nested too deeply", source=source) from None
+        deep = re.search(r"[\[{]{50,}|(?:[A-Za-z0-9_-]+\.){50,}", text)
+        line = text.count("\n", 0, deep.start()) + 1 if deep else None
+        key = _key_on_line(text, line)
+        raise PresetError(f"TOML nested too deeply{key}: a preset has tables one level deep ([group] then "
+                          "name = value)", source=source, line=line) from None
     except ValueError:  # tomllib lets int()'s digit limit escape: "Exceeds the limit (4300 digits)"
         long = re.search(r"[0-9_]{4000,}", text)
         line = text.count("\n", 0, long.start()) + 1 if long else None
-        raise PresetError("TOML syntax error: a number thousands of digits long", source=source,
-                          line=line) from None
+        raise PresetError(f"TOML syntax error: a number thousands of digits long{_key_on_line(text, line)}",
+                          source=source, line=line) from None
 
     where = _Locator(text)
     version = _check_version(doc, where, source)
@@ -219,14 +259,27 @@ def loads_preset(data: str | bytes, source: str = "<preset>") -> Preset:
 
     values, problems = _collect(doc)
     if problems:
-        errors = [PresetError(msg + note(key), key=key, source=source, line=locate(key))
-                  for key, msg in problems]
+        errors, told = [], set()
+        for key, msg in problems:
+            old = old_names.get(key or "")
+            if old and old in told:  # one old key feeding two new ones: report the old one once
+                continue
+            told.add(old)
+            errors.append(PresetError(msg + note(key), key=key, source=source, line=locate(key)))
         raise _combine(errors)
     try:
         params = Params(values)
     except ParamError as e:  # relations between parameters, e.g. fiber_radius too thick for rings
         raise PresetError(e.bare + note(e.key), key=e.key, source=source, line=locate(e.key)) from None
     return Preset(doc.get("name", ""), doc.get("description", ""), params)
+
+
+def _key_on_line(text: str, line: int | None) -> str:
+    """`` (key fibers.rings)`` for the ``name =`` that starts ``line``, else nothing."""
+    if not line:
+        return ""
+    found = _KEYLINE.match(text.split("\n", line)[line - 1][:200])
+    return f" (key {short_repr(found.group(1).strip(), 40)[1:-1]})" if found else ""
 
 
 def _syntax_error(e: tomllib.TOMLDecodeError, text: str, source: str) -> PresetError:
@@ -237,7 +290,10 @@ def _syntax_error(e: tomllib.TOMLDecodeError, text: str, source: str) -> PresetE
     if "(at end of document)" in msg:
         line = text.count("\n") + 1
     lines = text.split("\n")
-    shown = f": {_short(lines[line - 1].strip())}" if line and line <= len(lines) else ""
+    # Quote the line only when it is plain text: a file that is not a preset at all (say /proc/self/environ
+    # given by mistake) must not have its contents printed into a terminal or a log.
+    offending = lines[line - 1].strip() if line and line <= len(lines) else ""
+    shown = f": {_short(offending)}" if offending and offending.isprintable() and line <= 10_000 else ""
     return PresetError(f"TOML syntax error: {msg}{shown} - check quotes, brackets and the 'name = value' "
                        "form", source=source, line=line)
 
@@ -268,7 +324,7 @@ def _collect(doc: dict[str, Any]) -> tuple[dict[str, Any], list[tuple[str, str]]
                 problems.append((top, f"{top} = {_short(item)} is not allowed: expected a string"))
             continue
         if top not in GROUPS:
-            problems.append((top, _unknown_top(top, item)))
+            problems.append((top, _unknown_top(top, item) if len(problems) < MAX_PROBLEMS else ""))
             continue
         if not isinstance(item, dict):
             problems.append((top, f"{top} = {_short(item)} should be a table: write [{top}] and put "
@@ -277,6 +333,9 @@ def _collect(doc: dict[str, Any]) -> tuple[dict[str, Any], list[tuple[str, str]]
         for name, value in item.items():
             key = f"{top}.{name}"
             if key not in BY_KEY:
+                if len(problems) >= MAX_PROBLEMS:  # counted, not described: a "did you mean" costs time
+                    problems.append((key, ""))
+                    continue
                 known = ", ".join(p.name for p in SPEC if p.group == top)
                 problems.append((key, f"unknown parameter {key} = {_short(value)}{suggest(key)}; "
                                       f"[{top}] has: {known}"))
@@ -304,11 +363,18 @@ def _unknown_top(top: str, item: Any) -> str:
 
 
 def _combine(errors: list[PresetError]) -> PresetError:
-    errors.sort(key=lambda e: (e.line is None, e.line or 0))
+    """The first problem by line, then up to MAX_PROBLEMS - 1 more, then how many were left out."""
+    described = [e for e in errors if e.bare]
+    hidden = len(errors) - len(described)
+    described.sort(key=lambda e: (e.line is None, e.line or 0))
+    errors = described[:MAX_PROBLEMS]
+    hidden += len(described) - len(errors)
     first = errors[0]
-    if len(errors) == 1:
+    if len(errors) == 1 and not hidden:
         return first
     more = "\n".join(f"  also {e}" for e in errors[1:])
+    if hidden:
+        more += f"\n  ... and {hidden} more problem{'s' if hidden > 1 else ''} not shown"
     return PresetError(f"{first.bare}\n{more}", key=first.key, source=first.source, line=first.line)
 
 
@@ -399,7 +465,14 @@ def bundled_names() -> list[str]:
 def find_preset(name_or_path: str | os.PathLike[str]) -> Preset:
     """A path if one exists, else a bundled preset by name (file stem, ``.toml`` optional)."""
     path = Path(name_or_path)
-    if path.is_file():
+    if os.path.lexists(path):  # something is there: load it, or say why it is not a preset
+        if path.suffix.lower() != ".toml" and not path.is_dir():
+            raise PresetError("not a preset file: a preset is a .toml file (for a groom file use .hair, "
+                              ".data, .tfx or .ply)", source=str(path))
+        try:
+            path.stat()
+        except OSError as e:  # a symbolic link to nowhere, or a loop of them
+            raise PresetError(f"cannot open the preset: {e.strerror or e}", source=str(path)) from None
         return load_preset(path)
     folder = presets_dir()
     stem = path.name[:-5] if path.name.endswith(".toml") else path.name

@@ -294,7 +294,7 @@ def test_broken_groom_file_is_one_line_on_the_command_line(tmp_path: Path) -> No
     bad = tmp_path / "broken.hair"
     bad.write_bytes(b"HAIR" + bytes(20))
     run = _vfiber("info", str(bad))
-    assert run.returncode == 2 and run.stderr.startswith("vfiber: broken.hair: ")
+    assert run.returncode == 2 and run.stderr.startswith(f"vfiber: {bad.resolve()}: ")  # the whole path
     assert "Traceback" not in run.stderr
 
 

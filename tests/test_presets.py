@@ -78,6 +78,9 @@ def valid_params(draw: st.DrawFn) -> Params:
     values["fibers.fiber_radius"] = draw(st.floats(0.0, max_fiber_radius(values["fibers.rings"])))
     if values["scene.generator"] == "groom" and not values["scene.groom_file"]:
         values["scene.groom_file"] = "hair.ply"
+    values["scene.groom_file"] = values["scene.groom_file"].replace("\0", "")  # no file name holds a NUL
+    if values["camera.near"] and values["camera.far"] and values["camera.near"] >= values["camera.far"]:
+        values["camera.far"] = 0.0  # near must be less than far; 0 is automatic
     return Params(values)
 
 

@@ -1,60 +1,92 @@
-"""Text into OSL source, safely: string literals and identifiers.
+"""Text from people (preset names, descriptions, labels, help) made safe to put into generated OSL.
 
-``osl_string_literal(text) -> str``
-    The complete double-quoted OSL literal whose value is ``text``. Backslashes and quotes are escaped,
-    CR, LF and tab become ``\\r``, ``\\n``, ``\\t``, other control characters octal escapes; NUL is
-    removed (it would cut the string short in the compiled shader). A ``?`` that follows
-    a ``?`` is written ``\\077`` (octal) so no trigraph (``??=`` is ``#``, ``??/`` a backslash to a preprocessor that
-    honours trigraphs) can form. Nothing in ``text`` can end the literal or the line it is on.
-``osl_identifier(text) -> str``
-    A valid OSL identifier made from ``text``: characters outside ``[A-Za-z0-9_]`` become ``_``, a leading
-    digit gets a ``_`` before it, and a keyword, reserved word or shader global (``P``, ``N``, ``u``...)
-    gets a ``_`` after it. The empty string gives ``_``.
+OSL source goes through a C preprocessor before it is compiled. That preprocessor ends a line at LF *or*
+CR, splices a line that ends in a backslash onto the next one, and reads ``??X`` as a trigraph. So an
+escape that handles only ``\\``, ``"`` and ``\\n`` lets a file name such as ``x\\<CR>" ]]<CR>#define ...``
+close its string and inject code. Every piece of user text therefore goes through one of these:
+
+* :func:`osl_string_literal`: a complete, double-quoted literal. Printable ASCII stays as it is; ``\\`` and
+  ``"`` are escaped; any ``?`` that follows a ``?`` is written ``\\077`` (no trigraph can form); every other
+  printable character is written as octal escapes of its UTF-8 bytes (OSL decodes those, so ``é`` reads
+  back as ``é``); control and format characters (CR, LF, NUL, tab, U+2028, bidi overrides...) become ``?``
+  or a space. The result holds only printable ASCII, so nothing can end the line or the string early.
+* :func:`osl_identifier`: a valid OSL identifier that is not a keyword.
+* :func:`osl_comment`: one line of text for after ``//`` that cannot end in a line splice.
 """
 
 from __future__ import annotations
 
 import re
+import unicodedata
 
-__all__ = ["osl_string_literal", "osl_identifier", "RESERVED"]
+__all__ = ["osl_string_literal", "osl_identifier", "osl_comment"]
 
-_ESCAPES = {"\\": "\\\\", '"': '\\"', "\n": "\\n", "\r": "\\r", "\t": "\\t"}
+_PRINTABLE = {chr(c) for c in range(0x20, 0x7F)}
+_WHITESPACE = {"\t", "\n", "\r", "\v", "\f"}
 
-#: OSL keywords, reserved words (OSL spec 5.1) and shader globals a parameter must not shadow
-RESERVED = frozenset("""
+# OSL's reserved words and type names (the language spec, chapter 5, and the words it reserves); an
+# identifier equal to one of them gets a trailing underscore.
+_RESERVED = frozenset("""
 and break closure color continue do else emit float for if illuminance illuminate int matrix normal not or
-output point public return string struct vector void while
-bool case catch char class const delete default double enum extern false friend goto inline long new operator
-private protected short signed sizeof static switch template this throw true try typedef uniform union
-unsigned varying virtual volatile
-P I N Ng u v dPdu dPdv Ps time dtime dPdtime Ci L Cl Os
+output point public return string struct vector void while shader surface displacement light volume
+bool case catch char class const delete default double enum extern false friend goto inline long new
+operator private protected short signed sizeof static switch template this throw true try typedef uniform
+union unsigned varying virtual volatile
 """.split())
 
 
+def _visible(ch: str) -> str:
+    """One character as text that is safe in a literal (before escaping) or '?' / ' ' if it is not text."""
+    if ch in _PRINTABLE:
+        return ch
+    if ch in _WHITESPACE:
+        return " "
+    category = unicodedata.category(ch)
+    if category[0] == "C" or category in ("Zl", "Zp"):  # control, format, surrogate, unassigned, separators
+        return "?"
+    return ch
+
+
 def osl_string_literal(text: str) -> str:
-    out = []
-    prev = ""
+    """``text`` as a complete, quoted OSL string literal that no input can leave (see the module notes)."""
+    out = ['"']
+    previous = ""
     for ch in str(text):
-        if ch in _ESCAPES:
-            out.append(_ESCAPES[ch])
-        elif ch == "\0":
-            pass                                    # a NUL would cut the string short in the shader
-        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
-            out.append(f"\\{ord(ch):03o}")          # other control characters, as octal escapes
-        elif ch == "?" and prev == "?":
-            out.append("\\077")                     # "?" in octal: no trigraph can form
-        else:
+        ch = _visible(ch)
+        if ch == "\\":
+            out.append("\\\\")
+        elif ch == '"':
+            out.append('\\"')
+        elif ch == "?":
+            out.append("\\077" if previous == "?" else "?")
+        elif ch in _PRINTABLE:
             out.append(ch)
-        prev = ch
-    return '"' + "".join(out) + '"'
+        else:  # printable non-ASCII: its UTF-8 bytes as octal escapes, which OSL decodes back
+            out.append("".join(f"\\{b:03o}" for b in ch.encode("utf-8")))
+        previous = ch
+    out.append('"')
+    return "".join(out)
 
 
 def osl_identifier(text: str) -> str:
+    """A valid OSL identifier made from ``text``: ASCII letters, digits and ``_`` kept, anything else turned
+    into ``_``; never empty, never starting with a digit or ``__`` (reserved), never a keyword."""
     ident = re.sub(r"[^0-9A-Za-z_]", "_", str(text))
+    ident = re.sub(r"_{2,}", "_", ident).strip("_")[:64].rstrip("_")
     if not ident:
-        return "_"
+        return "unnamed"
     if ident[0].isdigit():
-        ident = "_" + ident
-    if ident in RESERVED:
+        ident = "n" + ident
+    if ident in _RESERVED:
         ident += "_"
     return ident
+
+
+def osl_comment(text: str) -> str:
+    """``text`` as one line of printable ASCII for after ``//``: no line break, no trigraph, and no
+    trailing backslash (which would splice the next line of source into the comment)."""
+    line = "".join(c if c in _PRINTABLE else ("?" if _visible(c) != " " else " ") for c in str(text))
+    while "??" in line:
+        line = line.replace("??", "? ?")
+    line = line.rstrip()
+    return line + "." if line.endswith("\\") else line

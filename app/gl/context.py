@@ -302,6 +302,86 @@ _CREATORS: dict[str, Callable[[int], tuple[Any, Callable[[], None]]]] = {
     "egl": _create_egl,
     "osmesa": _create_osmesa,
 }
+_PROBE_FIRST = {"osmesa"}  # the backend seen to crash (not fail) in Mesa: always probed in a child first
+
+
+# ------------------------------------------------------------------------------------ child probes
+# A broken driver does not always fail politely: with GALLIUM_DRIVER naming a driver that does not exist,
+# EGL fails but OSMesa segfaults inside Mesa, which no Python code can catch. So a backend that is not the
+# first choice is first tried in a child process, and only one that came back well is created here.
+
+PROBE_TIMEOUT_S = 30.0
+
+
+@dataclass(frozen=True)
+class ProbeResult:
+    backend: str
+    ok: bool
+    detail: str          # "llvmpipe (...), OpenGL 4.5 ..." when ok; else one line saying what went wrong
+    renderer: str = ""
+    version: str = ""
+
+
+_probe_cache: dict[tuple[str, int], ProbeResult] = {}
+
+
+def probe_backend(name: str, require: int = 450, timeout: float = PROBE_TIMEOUT_S) -> ProbeResult:
+    """Create a ``name`` context in a child process and report how that went: a crash (signal) or a hang
+    there costs this process nothing. The environment is inherited, so the child sees the same driver."""
+    import json
+    import signal
+    import subprocess
+    import sys
+
+    code = ("import json, sys; from app.gl.context import _probe_child; "
+            f"print(json.dumps(_probe_child({name!r}, {int(require)})))")
+    env = dict(os.environ)
+    package_root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [package_root, env.get("PYTHONPATH", "")]))
+    try:
+        run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout,
+                             env=env, stdin=subprocess.DEVNULL)
+    except subprocess.TimeoutExpired:
+        return ProbeResult(name, False, f"hung: no context after {timeout:g} s (probed in a child process)")
+    except OSError as exc:
+        return ProbeResult(name, False, f"could not start a probe process ({exc.strerror or exc})")
+    if run.returncode < 0:
+        try:
+            sig = signal.Signals(-run.returncode).name
+        except ValueError:
+            sig = f"signal {-run.returncode}"
+        return ProbeResult(name, False, f"crashed ({sig}) while creating a context, inside the driver "
+                                        "(probed in a child process); check GALLIUM_DRIVER / LIBGL_* settings "
+                                        "and reinstall libgl1-mesa-dri")
+    last = run.stdout.strip().splitlines()[-1] if run.stdout.strip() else ""
+    try:
+        answer = json.loads(last)
+    except ValueError:
+        answer = None
+    if run.returncode != 0 or not isinstance(answer, dict):
+        why = (run.stderr.strip().splitlines() or [f"exit status {run.returncode}"])[-1]
+        return ProbeResult(name, False, f"the probe process failed: {why[:200]}")
+    if not answer.get("ok"):
+        return ProbeResult(name, False, str(answer.get("error", "failed")))
+    return ProbeResult(name, True, f"{answer['renderer']}, OpenGL {answer['version']}", answer["renderer"],
+                       answer["version"])
+
+
+def _probe_child(name: str, require: int) -> dict:
+    """Run in the child of probe_backend: make one context, say what it is."""
+    try:
+        ctx, _ = _CREATORS[name](require)
+        renderer, version = _gl_strings(ctx)
+    except GLContextError as exc:
+        return {"ok": False, "error": str(exc)}
+    return {"ok": True, "renderer": renderer, "version": version}
+
+
+def _probed_well(name: str, require: int) -> ProbeResult:
+    key = (name, require)
+    if key not in _probe_cache:
+        _probe_cache[key] = probe_backend(name, require)
+    return _probe_cache[key]
 
 
 def create_headless(backend: str = "auto", require: int = 450) -> HeadlessContext:
@@ -322,7 +402,12 @@ def create_headless(backend: str = "auto", require: int = 450) -> HeadlessContex
     if not _live:
         _outside = _foreign_egl_context()
     attempts: list[tuple[str, str]] = []
-    for name in order:
+    for index, name in enumerate(order):
+        if index > 0 or name in _PROBE_FIRST:  # a fallback is created here only if a child survived it
+            probe = _probed_well(name, require)
+            if not probe.ok:
+                attempts.append((name, probe.detail))
+                continue
         try:
             ctx, make_current = _CREATORS[name](require)
             renderer, version = _gl_strings(ctx)

@@ -16,6 +16,8 @@ guesses that axis from the strands themselves (see :func:`guess_up`).
 from __future__ import annotations
 
 import math
+import os
+import stat
 import struct
 import time
 from dataclasses import dataclass, field
@@ -496,14 +498,46 @@ def load_groom(path: str | Path, up: str = "auto", scale: float = 1.0) -> Groom:
     multiply coordinates by ``scale``. Raises :class:`GroomError` for anything wrong with the file."""
     p = Path(path)
     _check_options(up, scale)
+    buf = _read_regular_file(p)
+    return parse_groom(buf, None, name=p.name, suffix=p.suffix, up=up, scale=scale, path=p)
+
+
+_NOT_REGULAR = ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISSOCK, "a socket"),
+                (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"))
+
+
+def _read_regular_file(p: Path) -> bytes:
+    """The bytes of a regular file of at most MAX_FILE_BYTES. A device or a FIFO reports st_size 0, so a
+    size check alone would read /dev/zero until memory ran out or block on a pipe forever: anything but a
+    regular file is refused before it is opened, and the read itself stops one byte past the limit."""
+    if "\0" in str(p):
+        shown = str(p.name).replace("\0", "\\0")
+        raise GroomError(f"{shown}: the path contains a NUL byte, which no file name can")
     try:
-        size = p.stat().st_size
-        if size > MAX_FILE_BYTES:
-            raise GroomError(f"{p.name}: {size} bytes is larger than the {MAX_FILE_BYTES}-byte limit for grooms")
-        buf = p.read_bytes()
+        info = p.stat()  # follows symbolic links: a link to /dev/zero is a device
+        for test, what in _NOT_REGULAR:
+            if test(info.st_mode):
+                raise GroomError(f"{p.name}: is {what}, not a regular groom file")
+        if not stat.S_ISREG(info.st_mode):
+            raise GroomError(f"{p.name}: is not a regular file")
+        if info.st_size > MAX_FILE_BYTES:
+            raise GroomError(f"{p.name}: {info.st_size} bytes is larger than the {MAX_FILE_BYTES}-byte limit "
+                             "for grooms")
+        # O_NONBLOCK: should the path turn into a FIFO between stat and open, open does not wait for a writer
+        fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
+        with os.fdopen(fd, "rb") as f:
+            opened = os.fstat(f.fileno())
+            if not stat.S_ISREG(opened.st_mode):
+                raise GroomError(f"{p.name}: is not a regular file")
+            # read() of n preallocates n bytes: ask for the file's size (+1 notices a file still growing)
+            buf = f.read(min(opened.st_size, MAX_FILE_BYTES) + 1)
+            if len(buf) > opened.st_size:
+                buf += f.read(MAX_FILE_BYTES + 1 - len(buf))
     except OSError as exc:
         raise GroomError(f"{p.name}: cannot read the file ({exc.strerror or exc})") from exc
-    return parse_groom(buf, None, name=p.name, suffix=p.suffix, up=up, scale=scale, path=p)
+    if len(buf) > MAX_FILE_BYTES:
+        raise GroomError(f"{p.name}: more than the {MAX_FILE_BYTES}-byte limit for grooms")
+    return buf
 
 
 def parse_groom(buf: bytes, fmt: str | None = None, *, name: str = "<groom>", suffix: str = "",
@@ -1101,5 +1135,12 @@ def scene_from_groom(p: Params) -> "GroomScene":
     the file, including a file without one usable strand.
     """
     t0 = time.perf_counter()
-    groom = load_groom(p["scene.groom_file"], up=p["scene.groom_up"], scale=p["scene.groom_scale"])
+    path = Path(p["scene.groom_file"])
+    try:
+        groom = load_groom(path, up=p["scene.groom_up"], scale=p["scene.groom_scale"])
+    except GroomError as exc:  # the loaders name the file by its base name; a person needs the whole path
+        text = str(exc)
+        if text.startswith(f"{path.name}:") and str(path) != path.name:
+            raise GroomError(f"{path}{text[len(path.name):]}") from None
+        raise
     return groom_scene(groom, p, {"load": time.perf_counter() - t0})

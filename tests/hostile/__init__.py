@@ -1,0 +1,1 @@
+"""The hostile-input corpus: every boundary, each case run through ``app.cli.main`` and classified."""
