@@ -102,6 +102,21 @@ def test_shader_source_is_a_port_without_trace():
         assert glsl in src, f"the port does not name its twin {glsl}"
 
 
+def test_an_include_below_code_is_inlined_where_it_stands():
+    """traverse.osl includes shaped.osl mid-file, as traverse.glsl does shaped.glsl: the shaped traversal
+    comes after the fiber ray and candidate runs it uses and before the dispatch that calls it; each file
+    once, its top includes first."""
+    src = osl_source.expand("fibers/traverse.osl")
+    at = {name: src.index(name + "(") for name in ("void vf_ring", "void vf_fiber_ray", "void vf_candidate_run",
+                                                  "void vf_traverse_shaped", "void vf_traverse_fibers")}
+    assert (at["void vf_ring"] < at["void vf_fiber_ray"] < at["void vf_candidate_run"]
+            < at["void vf_traverse_shaped"] < at["void vf_traverse_fibers"])
+    assert src.count("// ==== osl/fibers/shape.osl ====") == 1
+    assert src.count("// ==== osl/fibers/traverse.osl ====") == 1
+    assert src.count("// ==== osl/fibers/traverse.osl (continued) ====") == 1
+    assert not re.search(r'^\s*#\s*include', src, re.M)
+
+
 def test_changed_parameter_changes_the_shader():
     a = X.osl_source(Params({}))
     b = X.osl_source(Params({"fibers.rings": 11}))

@@ -11,14 +11,16 @@ parameters (``VfParams``, and the per-ring numbers the GL gets as uniforms are c
 and Cycles' fast-math ``asin``/``atan2`` need refining (trig.osl).
 
 Includes are resolved here (``#include "fibers/layout.osl"``, relative to the ``osl/`` root, each file
-once), so an exported shader is one self-contained text: a .blend embeds it as an internal text.
+once; an include below a file's first code is inlined where it stands, as in the GLSL), so an exported
+shader is one self-contained text: a .blend embeds it as an internal text.
 
 API
 ===
 
 ``osl_root() -> Path``                 the packaged ``app.osl`` (pyproject maps it to ``osl/``), else the checkout's
 ``expand(rel) -> str``                 ``osl/<rel>`` with its includes inlined (each file once)
-``LIBRARY``                            the library sections in include order (tuple of str), for probe shaders
+``LIBRARY``                            the library sections in include order (tuple of str; a file split by
+                                       an inlined include is two), for probe shaders
 ``SHADER_BODY``                        the shader body (``osl/stages/container.osl``), after the parameter block
 """
 
@@ -56,37 +58,60 @@ def _read(rel: str) -> str:
                                 "(reinstall vfiber)") from None
 
 
-def library_files(entries=ENTRY) -> list[str]:
-    """The library files in include order (dependencies first), each once."""
-    order: list[str] = []
+def _sections(entries) -> list[tuple[str, str]]:
+    """(file, text) sections in the order the shader needs them, each file once. An include before a
+    file's first line of code is a dependency, placed before the file; one further down is inlined where
+    it stands, as the GLSL's is (traverse.osl includes shaped.osl after the types and helpers it uses)."""
+    sections: list[tuple[str, str]] = []
+    done: list[str] = []
 
     def visit(rel: str, stack: tuple[str, ...]) -> None:
-        if rel in order:
+        if rel in done:
             return
         if rel in stack:
             raise ValueError(f"osl/{rel}: include cycle {' -> '.join(stack + (rel,))}")
+        chunk: list[str] = []
+        code = False                    # whether chunk holds more than comments
+
+        def flush() -> None:
+            body = "\n".join(chunk).strip()
+            if body:
+                later = any(r == rel for r, _ in sections)
+                sections.append((rel, f"// ==== osl/{rel}{' (continued)' if later else ''} ====\n{body}\n"))
+            chunk.clear()
+
         for line in _read(rel).splitlines():
             m = _INCLUDE.match(line)
-            if m:
-                visit(m.group(1), stack + (rel,))
-        order.append(rel)
+            if not m:
+                chunk.append(line)
+                code = code or bool(line.strip()) and not line.lstrip().startswith("//")
+                continue
+            if code:
+                flush()
+                code = False
+            visit(m.group(1), stack + (rel,))
+        flush()
+        done.append(rel)
 
     for rel in entries:
         visit(rel, ())
+    return sections
+
+
+def library_files(entries=ENTRY) -> list[str]:
+    """The library files in the order they begin in the shader (dependencies first), each once."""
+    order: list[str] = []
+    for rel, _ in _sections(entries):
+        if rel not in order:
+            order.append(rel)
     return order
 
 
-def _section(rel: str) -> str:
-    """One file without its include lines, headed by its name (compiler messages point into the whole)."""
-    body = "\n".join(line for line in _read(rel).splitlines() if not _INCLUDE.match(line))
-    return f"// ==== osl/{rel} ====\n{body.strip()}\n"
-
-
 def expand(rel: str) -> str:
-    """``osl/<rel>`` with every include inlined once, dependencies first."""
-    return "\n".join(_section(r) for r in library_files((rel,)))
+    """``osl/<rel>`` with every include inlined once (dependencies first, later includes in place)."""
+    return "\n".join(text for _, text in _sections((rel,)))
 
 
-LIBRARY: tuple[str, ...] = tuple(_section(rel) for rel in library_files())
+LIBRARY: tuple[str, ...] = tuple(text for _, text in _sections(ENTRY))
 SHADER_BODY: str = "\n" + "\n".join(line for line in _read(STAGE).splitlines()
                                      if not line.startswith("//")) + "\n"
