@@ -393,11 +393,12 @@ def test_the_slow_looks_of_the_issue_are_estimated_slow():
     from app.scene.generators import build_scene
     from tests.hostile.corpus import SLOW_LOOKS
 
-    for look in SLOW_LOOKS:
+    for look, size in SLOW_LOOKS:
         p = Params(dict(parse_assignment(a) for a in look))
         if budget.build_seconds(p) > budget.SLOW_SECONDS:
             continue                                  # refused before the scene is built
-        assert budget.estimate(p, build_scene(p), (64, 64)).slow, look
+        w, h = (int(v) for v in size.split("x"))
+        assert budget.estimate(p, build_scene(p), (w, h)).slow, (look, size)
     assert not budget.estimate(Params(), build_scene(Params()), (640, 360)).slow
 
 

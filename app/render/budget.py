@@ -147,9 +147,8 @@ def _tests_per_ray(p: Params, scene, mode: str) -> tuple[float, int]:
     # a piece of a typical ray through ring i's annulus sweeps a fraction of the most it can, seen from
     # the axis; the candidate window adds each fiber's reach on both sides
     sweep = TYPICAL_SWEEP * np.arccos(np.clip(inner / outer, 0.0, 1.0))
-    # rings that follow the inscribed ellipsoid shrink to the axis at the container's ends, where a
-    # piece of ray can sweep a quarter of the ring
-    sweep = sweep + p["shape.ellipsoid"] * (math.pi / 2 - sweep)
+    # (the ellipsoid no longer widens this: the shaped traversal cuts each arc to the heights it spans and
+    # scales the band to them, glsl/fibers/shaped.glsl)
     window = sweep + 2.0 * lay.reach
     reach = np.full(k, lay.fiber_radius)
     if shaped:
@@ -171,10 +170,6 @@ def _tests_per_ray(p: Params, scene, mode: str) -> tuple[float, int]:
     misses = float((reached * (1.0 - hit)).prod()) if k else 1.0
     tests = float((pieces * visited * reached * candidates).sum())
     tests += misses * float((pieces * visited * candidates).sum())   # a miss walks the back pieces too
-    # Ellipsoid rings need several draws of a few rings each (the renderer's loop budget), and a draw
-    # cannot stop at a hit in a ring it does not hold: nearly every piece is walked.
-    walk_all = 2.0 * float((pieces * visited * candidates).sum())
-    tests += p["shape.ellipsoid"] * max(0.0, walk_all - tests)
     if mode == "fast":
         tests *= 0.7                          # first hit wins, not the nearest
     return max(tests, 1.0), passes
