@@ -585,7 +585,9 @@ class Viewer:
         s = self.state
         p = s.params
         moving = s.dragging or s.view.turntable or (now() - s.last_change) < s.view.refine_delay
-        self._update_estimate()
+        if not (s.dragging or s.view.turntable):
+            # once a gesture ends, not every frame of it: 32,000 segments take ~40 ms to estimate here
+            self._update_estimate()
         if self._bench_forces():
             moving = self._bench["quality"] == "interactive"
         elif s.final_held:                  # a slow look: the preview stays until "Render anyway"
