@@ -723,3 +723,47 @@ def test_view_takes_set_on_top_of_its_target(tmp_path):
     assert proc.returncode == 0, proc.stderr
     params = next(json.loads(x[len(PREFIX):])["params"] for x in proc.stdout.splitlines() if x.startswith(PREFIX))
     assert params["fibers.rings"] == 3 and params["look.color"] == [0.8, 0.5, 0.3]
+
+
+@needs_xvfb
+def test_a_slow_look_shows_its_estimate_and_its_final_frame_waits_for_render_anyway(tmp_path):
+    t = tmp_path
+    slow = {"quality.supersample": 4, "shape.ellipsoid": 1.0}   # about 2 min a frame here at this size
+    script = {"size": [800, 450], "steps": [
+        {"wait_final": True},                                  # the default look: no word, nothing held
+        {"print": "estimate"}, {"print": "final_held"}, {"print": "label"},
+        {"set": slow},
+        {"wait": 2},
+        {"wait_seconds": 1.5},                                 # five times refine_delay: it would have started
+        {"wait": 3},
+        {"print": "estimate"}, {"print": "final_held"}, {"print": "label"}, {"print": "refining"},
+        {"grab": str(t / "held.png"), "ui": True},             # the panel says it, with the button
+        {"drag": [30, 0]},                                     # orbiting keeps the look: still held, still said
+        {"wait_seconds": 1.0}, {"wait": 2},
+        {"print": "final_held"}, {"print": "label"},
+        {"print": "drawing"},
+        {"render_anyway": True},
+        {"wait_seconds": 3.0}, {"wait": 2},                    # the preview, then the final frame in strips
+        {"print": "final_held"}, {"print": "label"}, {"print": "drawing"},
+        {"set": {"quality.supersample": 1}},                   # an ordinary look again: the word goes
+        {"wait_final": True},
+        {"print": "estimate"}, {"print": "final_held"},
+        {"print": "gl_error"},
+        {"quit": 0},
+    ]}
+    lines, err, rc = _viewer(script, tmp_path)
+    assert rc == 0, err
+    got = _merged(lines)
+    assert got["estimate"][0] == "" and got["final_held"][0] is False
+    assert got["label"][0].startswith("final")
+    words = got["estimate"][1]
+    assert words.startswith("this look takes about ") and " min a frame " in words, words
+    assert "waits for Render anyway" in words and "fiber tests" in words
+    assert got["final_held"][1:3] == [True, True]
+    assert got["label"][1].startswith("interactive") and got["refining"][0] is None, (got["label"], got["refining"])
+    assert got["label"][2].startswith("interactive") and got["drawing"][0] != "final"
+    # pressed: the final frame is being drawn (or, on a fast GPU, already done)
+    assert got["final_held"][3] is False
+    assert got["drawing"][1] == "final" or got["label"][3].startswith("final"), (got["drawing"], got["label"])
+    assert got["estimate"][2] == "" and got["final_held"][4] is False
+    assert got["gl_error"] == [[]]

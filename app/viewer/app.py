@@ -17,6 +17,11 @@ strips across UI frames (display.StripJob) over the picture that was on screen, 
 corner, so input, menus and the panel keep running whatever a frame costs. When nothing is out of date the
 loop sleeps in ``glfw.wait_events_timeout``.
 
+Before a final frame starts, ``render.budget.estimate`` (the work ``vfiber render`` refuses past a minute
+without ``--allow-slow``) is worked out for it: a look that takes more than ``NOTICE_SECONDS`` a frame says so
+at the top of the panel and in the stats overlay while it is on screen, and a slow one (``WorkEstimate.slow``)
+keeps the interactive preview until the person presses "Render anyway" (script step ``render_anyway``).
+
 A groom file is read and turned into containers in a worker thread (numpy only; every GL call stays on
 this thread), so the window is up and drawing while a big groom loads; the console gets a line per stage.
 """
@@ -48,6 +53,7 @@ from ..gl.context import GLContextError, create_window
 from ..gl.shaders import ProgramCache, ShaderError
 from ..params import ParamError
 from ..presets import PresetError, find_preset
+from ..render import budget
 from ..render.camera import Camera
 from ..render.renderer import Renderer
 from ..scene.containers import Scene
@@ -66,6 +72,7 @@ SHADER_POLL_S = 0.5
 SLOW_SCENE_BUILD_S = 0.15               # slower than this: rebuild the scene when the slider is released
 FRAME_HISTORY = 30
 INTERACTIVE_WHOLE = 1.5                 # interactive frames up to this times auto_budget_ms are drawn whole
+NOTICE_SECONDS = 5.0                    # final frames estimated longer than this say so (as vfiber render does)
 
 
 def _scale_fraction(name: str) -> float | None:
@@ -98,6 +105,8 @@ class Viewer:
         self._shown_quality = ""
         self._final_wanted = 1                      # samples the final frame accumulates
         self._cost_key: tuple | None = None
+        self._estimate_key: tuple | None = None     # what state.stats.estimate was worked out for
+        self._look_key: tuple | None = None         # the look "Render anyway" was pressed for
         self._watch: ProgramCache = self.programs   # the cache whose files are watched for hot reload
         self._fallback: ProgramCache | None = None  # the programs before the last reload
         self._last_shader_poll = 0.0
@@ -248,6 +257,8 @@ class Viewer:
             self._turntable_step()
         self._update_scene()
         rendered = self.render()
+        running = self._job is not None and self.vp.job is not None
+        self.state.stats.drawing = self._job["quality"] if running else ""
         rect = self._viewport_rect()
         self.ctx.screen.use()
         self.ctx.viewport = (0, 0) + self.framebuffer_size()
@@ -548,13 +559,39 @@ class Viewer:
         s.stats.explicit_bytes = explicit_bytes(per_container, scene.n_segments)
 
     # --- render(state): never touches imgui --------------------------------------------------------
+    def _update_estimate(self) -> None:
+        """The final frame's budget.estimate in plain words (cached by parameters, scene and view size)."""
+        s = self.state
+        size = self._viewport_rect()[2:]
+        values = tuple(s.params.values.items())
+        key = (values, id(self.scene), size)
+        if key == self._estimate_key:
+            return
+        self._estimate_key = key
+        look = (tuple(kv for kv in values if not kv[0].startswith("camera.")), id(self.scene))
+        if look != self._look_key:          # "Render anyway" holds for the look it was pressed for
+            self._look_key = look
+            s.slow_confirmed = False
+        try:
+            est = budget.estimate(s.params, self.scene, size)
+        except Exception:  # noqa: BLE001 - an estimate never stops the viewer
+            est = None
+        s.stats.estimate_slow = bool(est and est.slow)
+        s.stats.estimate_seconds = est.seconds if est else 0.0
+        s.stats.estimate = estimate_text(est, s.stats.gl_renderer) if est and est.seconds > NOTICE_SECONDS else ""
+
     def _quality(self) -> tuple[str, float, str]:
         """(\"final\" | \"interactive\", scale, mode) for the next sample."""
         s = self.state
         p = s.params
         moving = s.dragging or s.view.turntable or (now() - s.last_change) < s.view.refine_delay
+        if not (s.dragging or s.view.turntable):
+            # once a gesture ends, not every frame of it: 32,000 segments take ~40 ms to estimate here
+            self._update_estimate()
         if self._bench_forces():
             moving = self._bench["quality"] == "interactive"
+        elif s.final_held:                  # a slow look: the preview stays until "Render anyway"
+            moving = True
         if not moving:
             return "final", p["quality.render_scale"], p["quality.mode"]
         frac = _scale_fraction(s.view.interactive_scale)
@@ -570,7 +607,8 @@ class Viewer:
         return max(1, round(w * scale)), max(1, round(h * scale))
 
     def _plan(self) -> tuple[str | None, tuple]:
-        """What the next render should be: (None | \"new\" | \"sample\" | \"final-wait\", key)."""
+        """What the next render should be: (None | \"new\" | \"sample\" | \"refine\" | \"final-wait\" |
+        \"held\" (a slow look's preview, waiting for "Render anyway"), key)."""
         s = self.state
         if self.scene is None:
             return None, ()
@@ -592,7 +630,7 @@ class Viewer:
         if quality == "final" and s.view.view in ("shaded", "proxies") and self.vp.samples < self._final_wanted:
             return "sample", key
         if quality == "interactive":
-            return "final-wait", key
+            return ("held" if self.state.final_held else "final-wait"), key
         return None, key
 
     def final_shown(self) -> bool:
@@ -990,6 +1028,16 @@ def strand_scene(groom) -> Scene:
     rows[:, 16] = 1.0                                     # a frame vector (unused at radius 0)
     rows[:, 19] = np.repeat(np.arange(len(offsets) - 1), np.diff(offsets) - 1)   # guide: the strand's colour
     return Scene(rows, origin, "strands", groom.n_strands)
+
+
+def estimate_text(est: budget.WorkEstimate, gl_renderer: str) -> str:
+    """What a long frame costs, in the words the panel shows: the throughput behind the seconds was measured
+    on llvmpipe, so only there is it "this machine"."""
+    where = "on this machine" if "llvmpipe" in gl_renderer.lower() else "on llvmpipe (a GPU is far faster)"
+    text = f"this look takes about {budget._duration(est.seconds)} a frame {where}"
+    if est.slow:
+        text += "; the final frame waits for Render anyway, the preview still draws"
+    return f"{text}: {est.summary()}"
 
 
 def target_is_slow(params) -> bool:

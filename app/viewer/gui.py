@@ -18,6 +18,7 @@ from imgui_bundle import imgui
 
 from ..params import BY_KEY, SPEC, Param, max_fiber_radius
 from ..presets import bundled_names, presets_dir
+from ..render.budget import _duration
 from ..units import human_bytes
 from .display import HEAT_STOPS
 from . import vocabulary as words
@@ -259,6 +260,7 @@ def _panel(state: AppState, scratch: dict[str, Any], x: float, y: float, w: floa
         imgui.push_text_wrap_pos(0.0)
         imgui.text_colored(RED, "Scene not rebuilt: " + state.scene_error)
         imgui.pop_text_wrap_pos()
+    _estimate_note(state)   # above the sections: Render is closed by default, and any slider can make a look slow
     imgui.separator()
     imgui.push_item_width(-imgui.get_content_region_avail().x * 0.45)
     shown: list[str] = []
@@ -290,6 +292,22 @@ def _panel(state: AppState, scratch: dict[str, Any], x: float, y: float, w: floa
         _debug_panel(state)
     imgui.pop_item_width()
     imgui.end()
+
+
+def _estimate_note(state: AppState) -> None:
+    """A final frame that takes seconds or more says so before it starts; a slow one waits for the button."""
+    text = state.stats.estimate
+    if not text:
+        return
+    imgui.separator()
+    imgui.push_text_wrap_pos(0.0)
+    imgui.text_colored(AMBER if state.stats.estimate_slow else DIM, text)
+    imgui.pop_text_wrap_pos()
+    if state.final_held:
+        if imgui.button("Render anyway"):
+            state.render_anyway()
+        imgui.set_item_tooltip("start the final frame of this look; a smaller window, quality.supersample or "
+                               "the fiber density make it quicker")
 
 
 def _label(p: Param) -> str:
@@ -548,6 +566,8 @@ def stats_lines(state: AppState) -> list[str]:
              f"{s.fibers_exact:,} strands drawn from {s.guides:,} guide hairs",
              f"memory: {human_bytes(s.scene_gpu_bytes)} (storing every strand: {human_bytes(s.explicit_bytes)})"
              + frame_bytes_text(s)]
+    if state.final_held:
+        lines.append(f"final frame waits (about {_duration(s.estimate_seconds)}): Render anyway, in the panel")
     if state.pinned is not None and state.view.compare != "off":
         lines.append(f"A: {state.pinned_name} | B: live" if state.view.compare == "split" else f"showing A: {state.pinned_name}")
     return lines

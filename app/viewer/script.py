@@ -40,6 +40,7 @@ A script is a TOML or JSON file (by extension; JSON may also be a bare list of s
                                              # slow frame, refining as it would without a bench)
       { print = "last_error" },              # one JSON line on stdout: a report field, or "report"
       { report = "state.json" },             # the whole report as a file
+      { render_anyway = true },              # the panel's "Render anyway": start a slow look's final frame
       { echo = "text" },
       { quit = 0 },                          # exit code; a script without quit leaves the window open
     ]
@@ -68,7 +69,7 @@ PREFIX = "vfiber-script: "
 ACTIONS = ("open", "set", "wait", "wait_final", "screenshot", "grab", "save", "view", "key", "drag",
            "wheel", "answer", "turntable", "sweep", "bench", "print", "report", "echo", "quit", "revert",
            "bundled", "open_groom", "wait_seconds", "viewer", "wait_for", "resize", "mouse", "export_osl", "pin",
-           "render_turntable")
+           "render_turntable", "render_anyway")
 OPTIONS = {"size", "view", "name", "description", "button", "shift", "ctrl", "frames", "values",
            "quality", "discard", "prefix", "timeout", "final", "ui", "alpha"}
 WAIT_FINAL_TIMEOUT_S = 300.0
@@ -352,6 +353,8 @@ class ScriptRunner:
         elif action == "render_turntable":     # File > Render turntable: frames into the folder arg
             viewer.state.request("turntable", path=str(arg), frames=int(step.get("frames", 36)),
                                  size=tuple(step.get("size") or (640, 360)), alpha=bool(step.get("alpha")))
+        elif action == "render_anyway":        # the panel's "Render anyway": the slow look's final frame
+            state.render_anyway()
         elif action == "echo":
             emit(echo=str(arg))
         elif action == "quit":

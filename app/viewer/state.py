@@ -91,6 +91,8 @@ class Stats:
     frame_gpu_bytes: int | None = None   # the renderer's per-pixel buffers (None: it does not count them)
     viewer_gpu_bytes: int = 0            # the viewer's own: accumulation, uploads, base pictures
     refining: float | None = None        # fraction of the final picture drawn while it refines in strips
+    drawing: str = ""                    # the quality of the sample being drawn in strips ("final" or
+                                         # "interactive"; "" when none is)
     explicit_bytes: int = 0              # explicit storage of the same fibers (see EXPLICIT_FORMULA)
     tests_per_pixel: float | None = None  # mean fiber tests per container-covered pixel (cost render)
     tests_p99: float = 0.0
@@ -100,6 +102,9 @@ class Stats:
     edit_latency_ms: float | None = None  # slider change -> the frame that shows it, on screen
     scene_build_ms: float = 0.0
     depth_range: tuple[float, float] = (0.0, 1.0)   # what the depth view maps white .. black
+    estimate: str = ""                   # the final frame's cost in plain words, when it takes seconds or more
+    estimate_slow: bool = False          # ... past budget.SLOW_SECONDS: the final frame waits for "Render anyway"
+    estimate_seconds: float = 0.0
     gl_renderer: str = ""
     gl_error: str = "GL_NO_ERROR"
 
@@ -135,6 +140,8 @@ class AppState:
     osl_available: bool = False
     pinned: Params | None = None         # look A of an A/B comparison (Compare > Pin current look)
     pinned_name: str = ""
+    slow_confirmed: bool = False         # "Render anyway" for the slow look on screen; the app clears it when
+                                         # the look changes (camera moves and window sizes keep it)
 
     last_change: float = 0.0             # perf_counter of the last change to what is rendered
     last_edit: float | None = None       # perf_counter of the last parameter edit not yet on screen
@@ -168,6 +175,16 @@ class AppState:
     def value(self, key: str) -> Any:
         """What a field shows: a pending (not yet valid) value, else the live one."""
         return self.pending.get(key, self.params[key])
+
+    @property
+    def final_held(self) -> bool:
+        """The final frame of a slow look waits for the person (the interactive preview still draws)."""
+        return self.stats.estimate_slow and not self.slow_confirmed
+
+    def render_anyway(self) -> None:
+        """The panel's "Render anyway": start the final frame of the slow look on screen."""
+        self.slow_confirmed = True
+        self.touch()
 
     def touch(self) -> None:
         """Something that changes the image happened: show interactive quality for a moment."""
@@ -472,7 +489,9 @@ class AppState:
                 "segments": s.segments, "scene_gpu_bytes": s.scene_gpu_bytes, "explicit_bytes": s.explicit_bytes,
                 "tests_per_pixel": s.tests_per_pixel, "edit_latency_ms": s.edit_latency_ms,
                 "gl_renderer": s.gl_renderer, "gl_error": s.gl_error, "refining": s.refining,
+                "drawing": s.drawing,
                 "frame_gpu_bytes": s.frame_gpu_bytes, "viewer_gpu_bytes": s.viewer_gpu_bytes,
+                "estimate": s.estimate, "estimate_slow": s.estimate_slow, "final_held": self.final_held,
             },
         }
 
