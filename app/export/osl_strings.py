@@ -26,7 +26,10 @@ _WHITESPACE = {"\t", "\n", "\r", "\v", "\f"}
 
 # OSL's reserved words and type names (the language spec, chapter 5, and the words it reserves); an
 # identifier equal to one of them gets a trailing underscore.
-_RESERVED = frozenset("""
+# OSL's keywords and reserved words, and the shader globals (P, N, I, ...): a parameter or shader named
+# like a global would shadow it inside the generated source.
+_RESERVED = frozenset("""P I N Ng u v dPdu dPdv dPdx dPdy dPdz time dtime dPdtime Ps Ci
+
 and break closure color continue do else emit float for if illuminance illuminate int matrix normal not or
 output point public return string struct vector void while shader surface displacement light volume
 bool case catch char class const delete default double enum extern false friend goto inline long new
