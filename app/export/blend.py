@@ -12,9 +12,10 @@ What the file holds (docs/osl.md, "A Blender scene"):
   :mod:`app.export.osl`, embedded in the file, compiled by this exporter (the bytecode is saved with the
   node). Cycles exports a mesh attribute only when a non-script node asks for it, so one Attribute node
   per name feeds an AOV Output (``vf_keep``, one value pass) through a chain of Vector Math adds.
-* **Camera, key light, background** of ``vfiber render TARGET --size WxH``: the same orbit camera and
-  resolution; a Sun lamp in the preview's key-light direction; a world that shows ``look.background`` to
-  camera rays and lights the fibers with the preview's ambient fill.
+* **Camera, lights, background** of ``vfiber render TARGET --size WxH``: the same orbit camera and
+  resolution; a Sun lamp per light of ``look.light_rig`` (key, fill, rim); a world that shows
+  ``look.background`` to camera rays and lights the fibers with the preview's ambient fill plus the
+  environment image (packed into the file, turned by a Mapping node).
 * **Render settings the shader needs**: Cycles on the CPU with OSL, transparent bounces for every box a
   ray can cross, transparent film, Standard view transform, output to ``//render_####.png`` (relative).
 
@@ -411,7 +412,7 @@ def make_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
         prog="vfiber export-blend",
         description="Write a .blend that Blender Cycles renders as it is: every container of the scene on one "
-                    "mesh, the look's OSL shader embedded, the camera, key light and background of the preview. "
+                    "mesh, the look's OSL shader embedded, the camera, lights (key, fill, rim, environment) and background of the preview. "
                     "See docs/osl.md.")
     ap.add_argument("target", metavar="TARGET", nargs="?",
                     help="preset name or .toml file, or a groom file (.hair .data .tfx .ply)")
