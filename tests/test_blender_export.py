@@ -295,6 +295,7 @@ for ob in bpy.data.objects:
 nodes = bpy.context.scene.world.node_tree.nodes
 env = nodes.get("vfiber environment")
 images = [{"name": im.name, "packed": im.packed_file is not None, "filepath": im.filepath_raw,
+           "packed_paths": [pf.filepath for pf in im.packed_files],
            "size": list(im.size)} for im in bpy.data.images if im.type == "IMAGE"]
 out = {"lamps": lamps, "images": images, "external_paths": sorted(bpy.utils.blend_paths(absolute=False)),
        "env_image": env.image.name if env and env.image else None,
@@ -311,6 +312,15 @@ def _inspect_like_a_farm(blend: Path) -> dict:
                           cwd=str(blend.parent), env=env, timeout=300)
     assert proc.returncode == 0, (proc.stdout + proc.stderr)[-3000:]
     return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def _blend_bytes(blend: Path) -> bytes:
+    """The file's bytes, unpacked from Blender's zstd compression when there is the module for it."""
+    data = blend.read_bytes()
+    if data[:4] == b"\x28\xb5\x2f\xfd":
+        zstd = pytest.importorskip("zstandard")
+        data = zstd.ZstdDecompressor().decompressobj().decompress(data)
+    return data
 
 
 def _angle_degrees(a, b) -> float:
@@ -346,6 +356,9 @@ def test_exported_lights_match_the_light_rig(tmp_path):
     assert info["env_image"] == "vfiber-studio.hdr"
     image = next(im for im in info["images"] if im["name"] == info["env_image"])
     assert image["packed"] and image["filepath"] == "//vfiber-studio.hdr"     # Blender's relative name, no folder
+    assert image["packed_paths"] == ["//vfiber-studio.hdr"]
+    data = _blend_bytes(blend)
+    assert b"vfiber-light-" not in data and str(tmp_path).encode() not in data    # where the map was written
     h, w = environment_image("studio").shape[:2]
     assert image["size"] == [w, h]
     env = rig["environment"]

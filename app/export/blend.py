@@ -251,7 +251,10 @@ def _environment_image(bpy, env: dict):
         raise B.BlenderRenderError(f"{env['image']}: Blender could not load the environment image ({e})") from None
     name = Path(env["image"]).name
     image.name = name
-    image.filepath_raw = f"//{name}"     # packed: the data is in the file, this is only its name
+    # packed: the data is in the file, these are only its name (the packed copy keeps the source's path too)
+    image.filepath_raw = f"//{name}"
+    for packed in image.packed_files:
+        packed.filepath = f"//{name}"
     return image
 
 
