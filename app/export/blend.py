@@ -12,9 +12,10 @@ What the file holds (docs/osl.md, "A Blender scene"):
   :mod:`app.export.osl`, embedded in the file, compiled by this exporter (the bytecode is saved with the
   node). Cycles exports a mesh attribute only when a non-script node asks for it, so one Attribute node
   per name feeds an AOV Output (``vf_keep``, one value pass) through a chain of Vector Math adds.
-* **Camera, key light, background** of ``vfiber render TARGET --size WxH``: the same orbit camera and
-  resolution; a Sun lamp in the preview's key-light direction; a world that shows ``look.background`` to
-  camera rays and lights the fibers with the preview's ambient fill.
+* **Camera, lights, background** of ``vfiber render TARGET --size WxH``: the same orbit camera and
+  resolution; a Sun lamp per light of ``look.light_rig`` (key, fill, rim); a world that shows
+  ``look.background`` to camera rays and lights the fibers with the preview's ambient fill plus the
+  environment image (packed into the file, turned by a Mapping node).
 * **Render settings the shader needs**: Cycles on the CPU with OSL, transparent bounces for every box a
   ray can cross, transparent film, Standard view transform, output to ``//render_####.png`` (relative).
 
@@ -41,6 +42,7 @@ import argparse
 import math
 import os
 import sys
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -211,36 +213,95 @@ def _material(bpy, scene, source: str, name: str):
     return mat, script
 
 
-def _sun(bpy, p: Params):
-    az, el = math.radians(p["look.light_azimuth"]), math.radians(p["look.light_elevation"])
-    toward = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el)])
-    sun = bpy.data.lights.new("vfiber key light", "SUN")
-    # the preview's Lambert-like term is albedo * 0.8 * intensity at normal incidence; Cycles' diffuse
-    # gives albedo * strength / pi
-    sun.energy = 0.8 * math.pi * p["look.light_intensity"]
-    sun.angle = 0.0
-    ob = bpy.data.objects.new("vfiber key light", sun)
+#: the preview's Lambert-like term is albedo * 0.8 * intensity at normal incidence; Cycles' diffuse gives
+#: albedo * strength / pi: a preview light of intensity I is a Sun of strength 0.8 pi I, and an environment
+#: piece (radiance x solid angle, app/render/environment.py) scales the same, so the world's image does too
+SUN_PER_INTENSITY = 0.8 * math.pi
+
+
+def _suns(bpy, rig: dict) -> list:
+    """One Sun lamp per light of ``look.light_rig`` (key, fill, rim), shining from its direction."""
     from mathutils import Vector
-    ob.rotation_euler = Vector(toward).to_track_quat("Z", "Y").to_euler()  # a sun shines along its -Z
-    return ob
+
+    out = []
+    for light in rig["lights"]:
+        color = [float(c) for c in light["color"]]
+        peak = max(color)
+        name = f"vfiber {light['kind']} light"
+        sun = bpy.data.lights.new(name, "SUN")
+        sun.energy = SUN_PER_INTENSITY * peak
+        sun.color = [c / peak for c in color] if peak > 0 else [1.0, 1.0, 1.0]
+        sun.angle = 0.0
+        ob = bpy.data.objects.new(name, sun)
+        # a sun shines along its -Z, so its +Z points toward the light
+        ob.rotation_euler = Vector(light["direction"]).to_track_quat("Z", "Y").to_euler()
+        out.append(ob)
+    return out
 
 
-def _world(bpy, p: Params):
+def _environment_image(bpy, env: dict):
+    """The environment's lat-long image, packed into the file under a relative name (no path of this
+    machine is saved)."""
+    from . import blender as B
+
+    try:
+        image = bpy.data.images.load(env["image"], check_existing=False)
+        image.pack()
+    except RuntimeError as e:
+        raise B.BlenderRenderError(f"{env['image']}: Blender could not load the environment image ({e})") from None
+    name = Path(env["image"]).name
+    image.name = name
+    # packed: the data is in the file, these are only its name (the packed copy keeps the source's path too)
+    image.filepath_raw = f"//{name}"
+    for packed in image.packed_files:
+        packed.filepath = f"//{name}"
+    return image
+
+
+def _world(bpy, p: Params, rig: dict):
+    """Camera rays see ``look.background``; every other ray sees what lights the preview's fibers: the
+    ambient fill plus the environment image (its median-cut lights there), added as the preview adds them."""
     world = bpy.data.worlds.new("vfiber world")
     nt = world.node_tree
     for n in list(nt.nodes):
         nt.nodes.remove(n)
     out = nt.nodes.new("ShaderNodeOutputWorld")
     seen = nt.nodes.new("ShaderNodeBackground")
+    seen.name = seen.label = "vfiber background"
     seen.inputs["Color"].default_value = (*p["look.background"], 1.0)
     fill = nt.nodes.new("ShaderNodeBackground")
+    fill.name = fill.label = "vfiber fill"
     # the preview's ambient fill: ambient * albedo * (0.55 + 0.45 max(N.z, 0)), about 0.78 ambient on average
     a = 0.775 * p["look.ambient"]
     fill.inputs["Color"].default_value = (a, a, a, 1.0)
+    lighting = fill.outputs["Background"]
+    env = rig["environment"]
+    if env is not None and env["strength"] > 0:
+        coords = nt.nodes.new("ShaderNodeTexCoord")
+        mapping = nt.nodes.new("ShaderNodeMapping")
+        mapping.name = mapping.label = "vfiber environment rotation"
+        # TEXTURE: the image turns by +rotation about +Z (the lookup turns the other way)
+        mapping.vector_type = "TEXTURE"
+        mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(env["rotation_degrees"]))
+        tex = nt.nodes.new("ShaderNodeTexEnvironment")
+        tex.name = tex.label = "vfiber environment"
+        tex.projection = "EQUIRECTANGULAR"
+        tex.image = _environment_image(bpy, env)
+        tex.image.colorspace_settings.name = "Linear Rec.709"
+        light = nt.nodes.new("ShaderNodeBackground")
+        light.name = light.label = "vfiber environment light"
+        light.inputs["Strength"].default_value = SUN_PER_INTENSITY * env["strength"]
+        add = nt.nodes.new("ShaderNodeAddShader")
+        nt.links.new(coords.outputs["Generated"], mapping.inputs["Vector"])
+        nt.links.new(mapping.outputs["Vector"], tex.inputs["Vector"])
+        nt.links.new(tex.outputs["Color"], light.inputs["Color"])
+        nt.links.new(fill.outputs["Background"], add.inputs[0])
+        nt.links.new(light.outputs["Background"], add.inputs[1])
+        lighting = add.outputs["Shader"]
     path = nt.nodes.new("ShaderNodeLightPath")
     mix = nt.nodes.new("ShaderNodeMixShader")
     nt.links.new(path.outputs["Is Camera Ray"], mix.inputs["Fac"])
-    nt.links.new(fill.outputs["Background"], mix.inputs[1])
+    nt.links.new(lighting, mix.inputs[1])
     nt.links.new(seen.outputs["Background"], mix.inputs[2])
     nt.links.new(mix.outputs["Shader"], out.inputs["Surface"])
     return world
@@ -275,6 +336,7 @@ def export_blend(params: Params, path: str | Path, size: tuple[int, int] = (640,
     """Write the .blend for ``params`` (see the module docstring). Atomic: a failure keeps an old file."""
     from app.atomic import atomic_path
     from app.render.camera import Camera
+    from app.render.look import light_rig
     from app.scene.generators import build_scene
 
     from . import blender as B
@@ -306,8 +368,11 @@ def export_blend(params: Params, path: str | Path, size: tuple[int, int] = (640,
     cam_ob.name = "vfiber camera"
     scene.collection.objects.link(cam_ob)
     scene.camera = cam_ob
-    scene.collection.objects.link(_sun(bpy, params))
-    scene.world = _world(bpy, params)
+    with tempfile.TemporaryDirectory(prefix="vfiber-light-") as light_folder:
+        rig = light_rig(params, light_folder)     # a generated map is written there, then packed
+        for sun_ob in _suns(bpy, rig):
+            scene.collection.objects.link(sun_ob)
+        scene.world = _world(bpy, params, rig)
     say(f"writing {path} ...")
     with atomic_path(path) as tmp:
         # a temporary name ending in .blend: Blender appends .blend otherwise
@@ -350,7 +415,7 @@ def make_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
         prog="vfiber export-blend",
         description="Write a .blend that Blender Cycles renders as it is: every container of the scene on one "
-                    "mesh, the look's OSL shader embedded, the camera, key light and background of the preview. "
+                    "mesh, the look's OSL shader embedded, the camera, lights (key, fill, rim, environment) and background of the preview. "
                     "See docs/osl.md.")
     ap.add_argument("target", metavar="TARGET", nargs="?",
                     help="preset name or .toml file, or a groom file (.hair .data .tfx .ply)")
