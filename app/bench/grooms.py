@@ -290,7 +290,7 @@ def sheet(out: Path, size=(640, 360)) -> Path:
     from tqdm import tqdm
 
     from ..gl.context import create_headless
-    from ..render.debug_views import heat
+    from ..render.debug_views import heat, heat_legend
 
     hc = create_headless()
     shaded, extra = [], []
@@ -313,7 +313,7 @@ def sheet(out: Path, size=(640, 360)) -> Path:
                 for channel, what in ((0, "candidate containers traversed"), (1, "walk steps")):
                     v = f.walk[..., channel]
                     vmax = max(1.0, float(np.percentile(v[f.hit], 99)))
-                    extra.append((_legend(heat(v, vmax, v > 0), vmax, f"{what} / pixel"),
+                    extra.append((heat_legend(heat(v, vmax, v > 0), vmax, f"{what} / pixel"),
                                   f"harolongo: {what} per pixel (mean {v.sum() / covered:.2f} per covered px)"))
             s.renderer.release_targets()
     finally:
@@ -334,24 +334,6 @@ def sheet(out: Path, size=(640, 360)) -> Path:
     canvas.save(tmp)
     tmp.replace(path)
     return path
-
-
-def _legend(img: np.ndarray, vmax: float, unit: str) -> np.ndarray:
-    """A colour-scale bar from 0 to ``vmax`` along the bottom of a heat map."""
-    from PIL import Image, ImageDraw
-
-    from ..render.debug_views import heat
-
-    img = img.copy()
-    h, w = img.shape[:2]
-    bar = np.linspace(0, vmax, w - 20)[None].repeat(8, 0)
-    img[h - 18:h - 10, 10:w - 10] = heat(bar, vmax, np.ones_like(bar, bool))
-    pil = Image.fromarray(img)
-    draw = ImageDraw.Draw(pil)
-    draw.text((10, h - 32), "0", fill=(255, 255, 255))
-    label = f"{vmax:.0f} {unit}"
-    draw.text((w - 10 - 6 * len(label), h - 32), label, fill=(255, 255, 255))
-    return np.asarray(pil)
 
 
 def main(argv: list[str] | None = None) -> int:

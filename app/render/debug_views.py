@@ -74,15 +74,21 @@ def cost_image(cost: np.ndarray, vmax: float | None = None, legend: bool = True)
         vmax = float(np.percentile(tests[covered], 99)) if covered.any() else 1.0
     img = heat(tests, vmax, covered)
     if legend and img.shape[0] >= 40 and img.shape[1] >= 64:
-        from PIL import Image, ImageDraw
-
-        h, w = img.shape[:2]
-        bar = np.linspace(0, vmax, w - 20)[None].repeat(8, 0)
-        img[h - 18:h - 10, 10:w - 10] = heat(bar, vmax, np.ones_like(bar, bool))
-        pil = Image.fromarray(img)
-        draw = ImageDraw.Draw(pil)
-        draw.text((10, h - 32), "0", fill=(255, 255, 255))
-        label = f"{vmax:.0f} fiber tests / pixel"
-        draw.text((w - 10 - 6 * len(label), h - 32), label, fill=(255, 255, 255))
-        img = np.asarray(pil)
+        img = heat_legend(img, vmax, "fiber tests / pixel")
     return img
+
+
+def heat_legend(img: np.ndarray, vmax: float, unit: str) -> np.ndarray:
+    """A colour-scale bar from 0 to ``vmax`` (labelled in ``unit``) along the bottom of a heat map."""
+    from PIL import Image, ImageDraw
+
+    img = img.copy()
+    h, w = img.shape[:2]
+    bar = np.linspace(0, vmax, w - 20)[None].repeat(8, 0)
+    img[h - 18:h - 10, 10:w - 10] = heat(bar, vmax, np.ones_like(bar, bool))
+    pil = Image.fromarray(img)
+    draw = ImageDraw.Draw(pil)
+    draw.text((10, h - 32), "0", fill=(255, 255, 255))
+    label = f"{vmax:.0f} {unit}"
+    draw.text((w - 10 - 6 * len(label), h - 32), label, fill=(255, 255, 255))
+    return np.asarray(pil)

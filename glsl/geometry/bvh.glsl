@@ -54,20 +54,9 @@ bool key_before(float ta, uint ia, float tb, uint ib) {
 }
 
 // [enter, exit] of o + t d inside the infinite tube of radius r about the axis, for o and d already
-// perpendicular to it: circle_interval's stable roots (intervals.glsl) with the 3D cross product.
+// perpendicular to it: circle_interval's stable roots (intervals.glsl: radius_interval) in 3D.
 vec2 tube_interval(vec3 o, vec3 d, float r) {
-    float a = dot(d, d);
-    float b = dot(o, d);
-    float len = length(o);
-    float cc = (len - r) * (len + r);
-    float crs = length(cross(o, d));
-    float ra = sqrt(a) * r;
-    float disc = (ra - crs) * (ra + crs);
-    float q = -(b + (b >= 0.0 ? 1.0 : -1.0) * sqrt(max(disc, 0.0)));
-    float ta = q / a;
-    float tb = q != 0.0 ? cc / q : ta;
-    vec2 along = cc <= 0.0 ? vec2(-INF, INF) : vec2(INF, -INF);    // parallel to the axis
-    return a == 0.0 ? along : (disc < 0.0 ? vec2(INF, -INF) : vec2(min(ta, tb), max(ta, tb)));
+    return radius_interval(dot(d, d), dot(o, d), length(o), length(cross(o, d)), r);
 }
 
 // Entry and exit t of the ray 0 + t rd (camera at the origin) through inner node i's box; an empty

@@ -1,5 +1,6 @@
 // intervals.glsl: ray intervals inside simple regions, as vec2(tEnter, tExit); empty when x > y.
 //   vec2 circle_interval(vec2 o, vec2 d, vec2 c, float r)   infinite vertical cylinder, radius r about c
+//   vec2 radius_interval(float a, float b, float len, float crs, float r)   its roots, for any dimension
 //   vec2 slab(float o, float d, float lo, float hi)           lo <= o + t d <= hi
 // Twin: app/reference.py (circle_interval, _slab).
 
@@ -10,20 +11,22 @@
 // parallel to the axis (a = 0) is inside for every t or for none.
 // Written without early returns: llvmpipe runs both sides of every branch anyway, and code after a
 // return becomes a masked block whose every assignment costs a blend.
-vec2 circle_interval(vec2 o, vec2 d, vec2 c, float r) {
-    vec2 oc = o - c;
-    float a = dot(d, d);
-    float b = dot(oc, d);
-    float len = length(oc);
+// The roots of a |d|^2 t^2 + 2 b t + |oc|^2 - r^2 = 0 for a ray o + t d about an axis, from a = |d|^2,
+// b = oc . d, len = |oc| and crs = |oc x d| (2D or 3D): the interval inside radius r.
+vec2 radius_interval(float a, float b, float len, float crs, float r) {
     float cc = (len - r) * (len + r);
-    float cross2 = abs(oc.x * d.y - oc.y * d.x);
     float ra = sqrt(a) * r;
-    float disc = (ra - cross2) * (ra + cross2);
+    float disc = (ra - crs) * (ra + crs);
     float q = -(b + (b >= 0.0 ? 1.0 : -1.0) * sqrt(max(disc, 0.0)));
     float ta = q / a;
     float tb = q != 0.0 ? cc / q : ta;
     vec2 along = cc <= 0.0 ? vec2(-INF, INF) : vec2(INF, -INF);    // parallel to the axis
     return a == 0.0 ? along : (disc < 0.0 ? vec2(INF, -INF) : vec2(min(ta, tb), max(ta, tb)));
+}
+
+vec2 circle_interval(vec2 o, vec2 d, vec2 c, float r) {
+    vec2 oc = o - c;
+    return radius_interval(dot(d, d), dot(oc, d), length(oc), abs(oc.x * d.y - oc.y * d.x), r);
 }
 
 vec2 slab(float o, float d, float lo, float hi) {
