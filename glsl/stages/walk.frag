@@ -8,7 +8,7 @@
 // (uState, uHit*), and resolve.frag shades the winner once. One draw traverses one container per pixel,
 // like a proxy fragment did: llvmpipe runs a loop as long as its slowest lane, so a loop over several
 // containers would make each SIMD batch pay for its deepest pixel at every step. A pixel that needs
-// another container counts itself in `unfinished` and discards, and the renderer draws again
+// another container counts itself in `unfinished`, and the renderer draws again
 // (renderer.py: Renderer._walk_draws); mark_done.frag then writes depth where a pixel is done, and the
 // early depth test keeps it out of later draws (the rasterizer, not this shader, skips it).
 // Variants (defines): TRAVERSAL 0 fast (the first container with a hit wins), 1 exact, 2 brute;
@@ -54,11 +54,7 @@ void main() {
     vec3 rd = view_ray(uPixelOffset);
 
     // on to the next container (a pixel that stopped at one last draw stands on it already)
-#ifndef NO_WALK
     walk_to_leaf(node, trail, rd, uNear, walk_cut(bestT));
-#else
-    node = uint(uBvhLeaves - 1 + (px.x % uSegmentCount));
-#endif
     bool visit = node != WALK_DONE && node_level(node) == uBvhDepth;
     // no branch around the traversal: under a lane mask llvmpipe pays a blend for every assignment in it,
     // so a pixel with nothing to visit traverses segment 0 along an empty interval instead
@@ -69,11 +65,7 @@ void main() {
     ur.s0 = inside ? ur.s0 : INF;
     ur.s1 = inside ? ur.s1 : -INF;
     int entered = inside ? 1 : 0;
-#ifdef NO_TRAVERSE
-    FiberHit best = no_hit();
-#else
     FiberHit best = traverse(seg, ur);
-#endif
     float t = best.s < INF ? unit_to_world_t(seg, ur, best.s) : INF;
     bool improved = best.s < INF && key_before(t, id, bestT, bestSeg);
     bestT = improved ? t : bestT;
@@ -84,9 +76,7 @@ void main() {
     pop(upNode, upTrail);
     node = visit ? upNode : node;
     trail = visit ? upTrail : trail;
-#ifndef NO_WALK2
     walk_to_leaf(node, trail, rd, uNear, walk_cut(bestT));
-#endif
     node = (gMode == 0 && bestT < INF) ? WALK_DONE : node;     // fast: the first container with a hit wins
     bool finished = node == WALK_DONE;
     imageStore(uState, px, uvec4(bestT < INF ? floatBitsToUint(bestT) : 0u, bestSeg, node, trail));
