@@ -122,6 +122,10 @@ def check_budget(p: Params, size: tuple[int, int], allow_slow: bool, scene=None)
     if scene is None:
         seconds = budget.build_seconds(p)
         if seconds > budget.SLOW_SECONDS and not allow_slow:
+            if p["scene.generator"] == "groom":
+                raise UsageError(f"clustering the groom's strands into scene.groom_cluster = "
+                                 f"{p['scene.groom_cluster']:,} guides takes roughly {budget._duration(seconds)} "
+                                 f"before the first pixel; ask for fewer guides (or 0: one per strand), or {how}")
             raise UsageError(f"building {p['scene.count']:,} guides x {p['scene.segments']} segments takes roughly "
                              f"{budget._duration(seconds)} before the first pixel; lower scene.count or "
                              f"scene.segments, or {how}")

@@ -387,6 +387,19 @@ def test_estimate_follows_the_renderers_own_cost(renderer):
         assert est.summary().startswith("about ")
 
 
+def test_groom_clustering_is_estimated_before_the_scene_is_built(tmp_path):
+    """The issue's scene.groom_cluster=5000 on 200,000 strands (minutes of k-means) is slow before a guide
+    is built; a groom without clustering, or clustered into few guides, costs nothing to speak of."""
+    from app.render import budget
+    from tests.hostile.corpus import _many_strands
+
+    path = _many_strands(tmp_path, 200_000)
+    many = Params({"scene.generator": "groom", "scene.groom_file": str(path), "scene.groom_cluster": 5000})
+    assert budget.build_seconds(many) > budget.SLOW_SECONDS
+    assert budget.build_seconds(many.replace(**{"scene.groom_cluster": 0})) == 0.0
+    assert budget.build_seconds(many.replace(**{"scene.groom_cluster": 20})) < 5.0
+
+
 def test_the_slow_looks_of_the_issue_are_estimated_slow():
     from app.params import parse_assignment
     from app.render import budget

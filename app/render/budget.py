@@ -46,6 +46,9 @@ FRAGMENTS_PER_SECOND = 1.0e6
 # Scene.from_polylines builds containers one segment at a time: about 0.2 ms each here (5,000 guides of 64
 # segments took 63 s), so 200,000 guides of 64 segments would take ~40 minutes before the first pixel.
 SECONDS_PER_GENERATED_SEGMENT = 2.0e-4
+# k-means (app/scene/grooms.py: _kmeans) on this machine: 60-370 ns per strand x cluster, measured at
+# 8,000-50,000 strands and 500-5,000 clusters; the upper end, so a slow clustering is never waved through
+SECONDS_PER_STRAND_CLUSTER = 4.0e-7
 # Bytes per output pixel a frame holds at its peak: the render targets (colour 4, ids 16, normal+depth 16,
 # depth buffer 4) on llvmpipe's system-memory framebuffers, their read-backs and the composited image;
 # measured: 9000 x 9000 peaked at 8 GB, 81 M pixels.
@@ -54,11 +57,25 @@ MAX_FRAME_BYTES = 4 * 1024**3  # above this a frame needs --allow-slow (and that
 
 
 def build_seconds(p: Params) -> float:
-    """Seconds to build a generated scene (0 for a groom: its cost is in the file), before building it."""
+    """Seconds to build the scene, before building it: a generated scene by its segments; a groom by the
+    k-means that scene.groom_cluster asks for (reading the file is fast; clustering 200,000 strands into
+    5,000 guides is minutes)."""
     if p["scene.generator"] == "groom":
-        return 0.0
+        return cluster_seconds(p)
     segments = p["scene.count"] * p["scene.segments"] if p["scene.generator"] != "single" else p["scene.segments"]
     return segments * SECONDS_PER_GENERATED_SEGMENT
+
+
+def cluster_seconds(p: Params) -> float:
+    """Seconds scene.groom_cluster's k-means takes on this groom: strands x clusters x
+    SECONDS_PER_STRAND_CLUSTER (0 without clustering, or with at least as many clusters as strands)."""
+    k = p["scene.groom_cluster"]
+    if k <= 0 or not p["scene.groom_file"]:
+        return 0.0
+    from ..scene.grooms import load_groom
+
+    n = load_groom(p["scene.groom_file"], p["scene.groom_up"], p["scene.groom_scale"]).n_strands
+    return 0.0 if k >= n else n * k * SECONDS_PER_STRAND_CLUSTER
 
 
 def frame_bytes(size: tuple[int, int]) -> int:

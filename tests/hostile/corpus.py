@@ -50,6 +50,18 @@ class Result:
     stderr: str = ""
 
 
+def _many_strands(d: Path, n: int) -> Path:
+    """A USC-HairSalon .data file of n two-vertex strands on a grid (5.6 MB for 200,000)."""
+    import numpy as np
+
+    g = np.arange(n, dtype=np.float32)
+    root = np.stack([g % 500, g // 500, np.zeros(n, np.float32)], 1)
+    strand = np.zeros(n, dtype=[("count", "<i4"), ("xyz", "<f4", (2, 3))])
+    strand["count"] = 2
+    strand["xyz"][:, 0], strand["xyz"][:, 1] = root, root + np.float32([0, 0, 5])
+    return _write(d, "many.data", np.int32(n).tobytes() + strand.tobytes())
+
+
 def _write(d: Path, name: str, data: str | bytes) -> Path:
     path = d / name
     path.write_bytes(data if isinstance(data, bytes) else data.encode("utf-8"))
@@ -215,6 +227,8 @@ def cases() -> list[Case]:
     for look, size in SLOW_LOOKS:
         c.append(Case(W, f"slow look {' '.join(look)} at {size}", (lambda look, size: lambda d: _render(
             d, *_sets(look), size=size))(look, size)))
+    c.append(Case(W, "scene.groom_cluster=5000 on a 200,000-strand groom", lambda d: _render(
+        d, str(_many_strands(d, 200_000)), "--set", "scene.groom_cluster=5000")))
 
     # --- GL environment faults (child processes: the fault is the environment)
     E = "GL environment"
