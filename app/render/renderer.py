@@ -31,7 +31,7 @@ from .. import reference
 from . import look
 from ..gl.shaders import ProgramCache
 from ..params import ParamError, Params
-from ..scene.containers import SEGMENT_BYTES, Scene
+from ..scene.containers import Scene
 from .bvh import ContainerBvh, build_bvh, bvh_nbytes
 from .camera import Camera
 
@@ -70,6 +70,7 @@ VISIBILITY = ("auto", "proxies", "walk")
 # carpet (5.9) 272 vs 541, fur-ball (11.7) 426 vs 388, sintel (11.1) 470 vs 317, Ratboy (10.4) 465 vs 207,
 # harolongo (157) 5,800 vs 540 (docs/performance.md, "Two ways to find a pixel's containers").
 WALK_LAYERS = 8.0
+LAYER_SAMPLE = 32_768             # segments proxy_layers counts (every n-th past that)
 MAX_DRAWS = 512                   # draws of one sample and fiber range before the renderer gives up
 COVERAGE_LEVEL = 6                # hierarchy level whose node boxes mark the pixels to walk (<= 64 boxes)
 WALK_DEPTH, RESOLVE_DEPTH = 0.5, 0.75     # window depths of the fullscreen passes (see _walk_draws)
@@ -810,10 +811,13 @@ def proxy_layers(scene: Scene, cam: Camera, size: tuple[int, int], grid: int = 6
     rectangle (its end points widened by its radius) counted on a coarse grid, a rectangle smaller than
     its cells counted by its share of them. The proxies strategy costs a traversal per layer; the walk
     a walk plus the containers in front of each pixel's fiber. A segment reaching behind the camera
-    makes it infinite (its proxy covers the whole viewport). ~50 ms for harolongo's 158,100 segments."""
+    makes it infinite (its proxy covers the whole viewport). At most LAYER_SAMPLE segments are counted."""
     if scene.n_segments == 0:
         return 0.0
-    seg = scene.segments.astype(np.float64)
+    # the viewer asks on every camera move: past LAYER_SAMPLE segments every stride-th one stands for its
+    # neighbours (strands are stored root to tip, so a stride samples the whole groom)
+    stride = max(1, -(-scene.n_segments // LAYER_SAMPLE))
+    seg = scene.segments[::stride].astype(np.float64)
     right, up, forward = (np.asarray(v, np.float64) for v in cam.basis())
     rel = scene.origin - cam.position
     w, h = size
@@ -840,7 +844,7 @@ def proxy_layers(scene: Scene, cam: Camera, size: tuple[int, int], grid: int = 6
         return np.clip(((v + 1) / 2 * n).astype(np.int64), 0, n - 1)
 
     cx0, cx1, cy0, cy1 = cell(xa, gx), cell(xb, gx) + 1, cell(ya, gy), cell(yb, gy) + 1
-    share = np.minimum(1.0, (xb - xa) * (yb - ya) / 4 * gx * gy / ((cx1 - cx0) * (cy1 - cy0)))
+    share = stride * np.minimum(1.0, (xb - xa) * (yb - ya) / 4 * gx * gy / ((cx1 - cx0) * (cy1 - cy0)))
     diff = np.zeros((gy + 1, gx + 1))                           # a 2D difference array of the rectangles
     for yy, xx, sign in ((cy0, cx0, 1), (cy0, cx1, -1), (cy1, cx0, -1), (cy1, cx1, 1)):
         np.add.at(diff, (yy, xx), sign * share)

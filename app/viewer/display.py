@@ -618,7 +618,6 @@ class ViewportRenderer:
 
     def _draw_view(self, rect, view: str, p: Params, cam: Camera | None, scene: Scene | None, heat_max: float,
                    shown: moderngl.Texture | None, samples: int) -> None:
-        ctx = self.ctx
         prog = self._prog("viewer/display.frag", defines={"VIEW": VIEW_CODE[view]})
         dummy = self._dummies()
         shown = shown or dummy["f4"]
