@@ -105,6 +105,40 @@ def render_contact_sheet(looks: list[tuple[str, Params]], tile: tuple[int, int],
     return sheet
 
 
+def compose_sheet(tiles: list[tuple[str, "np.ndarray"]], out: str | Path, cols: int | None = None):
+    """Pictures made elsewhere (uint8 RGB, all one size), labelled as ``render_contact_sheet`` labels its
+    own, ``cols`` to a row (default: as square as it goes); written atomically to ``out``. For comparisons
+    whose tiles do not all come from the virtual renderer (app/bench/looks.py: the strand reference)."""
+    from PIL import Image, ImageDraw, PngImagePlugin
+
+    from .atomic import atomic_path
+
+    if not tiles:
+        raise ValueError("compose_sheet: no tiles")
+    h, w = tiles[0][1].shape[:2]
+    if any(img.shape[:2] != (h, w) for _, img in tiles):
+        raise ValueError(f"compose_sheet: every tile must be {w}x{h}")
+    cols = cols or math.ceil(math.sqrt(len(tiles)))
+    rows = math.ceil(len(tiles) / cols)
+    font = _font(14)
+    measure = ImageDraw.Draw(Image.new("RGB", (1, 1)))
+    wrapped = [_wrap(measure, label, font, w - 12) for label, _ in tiles]
+    label_height = 8 + LINE_HEIGHT * max(len(lines) for lines in wrapped)
+    boxes = tile_boxes(len(tiles), (w, h), label_height, cols)
+    sheet = Image.new("RGB", (cols * (w + GAP) + GAP, rows * (h + label_height + GAP) + GAP), SHEET_BG)
+    draw = ImageDraw.Draw(sheet)
+    for (x, y, _, _), (_, img), lines in zip(boxes, tiles, wrapped):
+        sheet.paste(Image.fromarray(img), (x, y))
+        for i, line in enumerate(lines):
+            draw.text((x + 6, y + h + 4 + i * LINE_HEIGHT), line, fill=LABEL_FG, font=font)
+    info = PngImagePlugin.PngInfo()
+    info.add_text(LABEL_KEY, json.dumps([label for label, _ in tiles]))
+    info.add_text(TILES_KEY, json.dumps({"boxes": boxes, "label_height": label_height}))
+    with atomic_path(out) as tmp:
+        sheet.save(tmp, format="PNG", pnginfo=info)
+    return sheet
+
+
 def _wrap(draw, text: str, font, width: int) -> list[str]:
     """Words onto lines no wider than ``width``; past MAX_LINES the last line ends with an ellipsis."""
     lines: list[str] = []
@@ -143,9 +177,10 @@ def layout_of(path: str | Path) -> tuple[list[tuple[int, int, int, int]], int]:
     return [tuple(b) for b in layout["boxes"]], layout["label_height"]
 
 
-def tile_boxes(count: int, tile: tuple[int, int], label_height: int) -> list[tuple[int, int, int, int]]:
+def tile_boxes(count: int, tile: tuple[int, int], label_height: int,
+               cols: int | None = None) -> list[tuple[int, int, int, int]]:
     """(x, y, w, h) of each tile's picture in a sheet of ``count`` tiles (the label strip lies below)."""
     w, h = tile
-    cols = math.ceil(math.sqrt(count))
+    cols = cols or math.ceil(math.sqrt(count))
     return [(GAP + (n % cols) * (w + GAP), GAP + (n // cols) * (h + label_height + GAP), w, h)
             for n in range(count)]

@@ -1,6 +1,6 @@
 """``python -m app.bench [suite ...] [--quick] [--out DIR]``: run the benchmark suites.
 
-Suites: memory, rings, containers, accuracy, scaling, grooms (default: all). Each writes DIR/<suite>.csv,
+Suites: memory, rings, containers, accuracy, scaling, grooms, looks (default: all). Each writes DIR/<suite>.csv,
 DIR/<suite>.md and DIR/<suite>.png; DIR/summary.md holds the machine, the command and the targets.
 ``--quick`` runs a reduced set in under two minutes on a 2-core llvmpipe machine (CI, newcomers); the full
 set takes under thirty. ``main(argv)`` is what ``vfiber bench`` calls.
@@ -119,7 +119,8 @@ def _main(argv: list[str] | None) -> int:
     start = time.perf_counter()
     started = machine_info()          # date and commit as the run begins
     jobs = [(name, cfg) for name in names for cfg in SUITES[name].configs(level)]
-    env_args = {"reps": args.reps, "warmup": args.warmup, "budget_bytes": args.explicit_budget, "level": level}
+    env_args = {"reps": args.reps, "warmup": args.warmup, "budget_bytes": args.explicit_budget, "level": level,
+                "out": str(out)}
     results: dict[str, list[dict]] = {name: [] for name in names}
     gl = {"renderer": "", "version": ""}
     shared: Env | None = None

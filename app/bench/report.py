@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from .. import units
-from . import grooms
+from . import grooms, looks
 from .suites import SUITES, thesis_table_2
 from .timing import Machine, crossover, fit_power_law
 
@@ -321,8 +321,12 @@ def plot_grooms(rows: list[Row], path: Path, machine: Machine | None) -> None:
     grooms.plot(rows, path, machine, _plt(), _save)
 
 
+def plot_looks(rows: list[Row], path: Path, machine: Machine | None) -> None:
+    looks.plot(rows, path, machine, _plt(), _save)
+
+
 PLOTS = {"memory": plot_memory, "rings": plot_rings, "containers": plot_containers,
-         "accuracy": plot_accuracy, "scaling": plot_scaling, "grooms": plot_grooms}
+         "accuracy": plot_accuracy, "scaling": plot_scaling, "grooms": plot_grooms, "looks": plot_looks}
 
 
 def _tidy(fig) -> None:
@@ -370,6 +374,8 @@ def write_suite(name: str, rows: list[Row], out: Path, machine: Machine | None, 
                   if fits else "(fewer than two points per axis: nothing to fit)"]
     if name == "grooms":
         parts += ["", grooms.NOTES, "", targets_markdown(grooms.targets(rows))]
+    if name == "looks":
+        parts += ["", looks.NOTES, "", targets_markdown(looks.targets(rows))]
     if name == "memory":
         x = memory_crossover(rows)
         parts += ["", f"Cross-over (explicit frame time = virtual, exact mode): "

@@ -25,7 +25,7 @@ from ..render.explicit import DEFAULT_BUDGET_BYTES, ExplicitBudgetError, Explici
 from ..render.renderer import Frame, Renderer
 from ..scene.containers import Scene
 from ..scene.generators import build_scene, guide_polyline
-from . import grooms
+from . import grooms, looks
 from .timing import current_rss_bytes, peak_rss_bytes, time_frames
 
 Row = dict[str, Any]
@@ -40,6 +40,7 @@ class Env:
     warmup: int = 2
     budget_bytes: int = DEFAULT_BUDGET_BYTES
     level: str = "full"
+    out: str | None = None                        # the run's output folder: suites with pictures write there
     _virtual: Renderer | None = None
     _explicit: ExplicitRenderer | None = None
 
@@ -430,6 +431,8 @@ SUITES: dict[str, Suite] = {s.name: s for s in (
     Suite("grooms", "Real grooms per strand against the default preset, and Table 4's 200 vs 10 containers, "
           "in one process", "Table 4 (full, 10 and 200 containers)", grooms.configs, grooms.run,
           columns=grooms.COLUMNS),
+    Suite("looks", "Each shared groom against its own strands: coverage IoU, orientation, contact sheets",
+          "- (issue 15)", looks.configs, looks.run, columns=looks.COLUMNS),
 )}
 
 

@@ -293,6 +293,28 @@ class ExplicitRenderer:
         self.stats = BuildStats(pl.fibers, pl.instances, self.gpu_bytes, time.perf_counter() - t0)
         return self.stats
 
+    def set_fibers(self, scene: Scene, records: np.ndarray, fibers_per_container: int,
+                   fiber_radius: float) -> BuildStats:
+        """Draw fibers made elsewhere (app/bench/strand_reference.py: child strands of a groom's own
+        strands) through the same ribbons and shading: ``records`` holds ``fibers_per_container`` instance
+        records (as ``segment_fibers`` makes them) per row of ``scene``, row-major. Until the next
+        ``set_scene`` these fibers stay whatever fiber-layout parameters ``render`` is given; ids then
+        report ring 0 and the fiber's index in its row."""
+        F = int(fibers_per_container)
+        records = np.ascontiguousarray(records, np.uint16).reshape(-1, 6)
+        if F < 1 or len(records) != scene.n_segments * F:
+            raise ValueError(f"set_fibers: {len(records):,} records for {scene.n_segments:,} rows x {F} fibers")
+        pl = Plan(scene.n_segments, len(np.unique(scene.segments[:, 19])), F)
+        if pl.gpu_bytes > self.budget_bytes:
+            raise ExplicitBudgetError(pl.gpu_bytes, self.budget_bytes, pl.fibers, pl.bytes_per_fiber)
+        t0 = time.perf_counter()
+        self.release()
+        self.scene, self.plan, self._key = scene, pl, ("fibers made elsewhere", float(fiber_radius))
+        self._rows = self.ctx.buffer(np.ascontiguousarray(scene.segments, np.float32).tobytes())
+        self._fibers = self.ctx.buffer(records.tobytes())
+        self.stats = BuildStats(pl.fibers, pl.instances, self.gpu_bytes, time.perf_counter() - t0)
+        return self.stats
+
     @property
     def gpu_bytes(self) -> int:
         """Bytes of GPU buffers holding the fibers and their segments (render targets not included)."""
@@ -367,6 +389,9 @@ class ExplicitRenderer:
             "uTintVariation": p["look.tint_variation"], "uRoughnessVariation": p["look.roughness_variation"],
             **_look_uniforms(p, lay.fibers_per_container),
         }
+        if self._key[0] == "fibers made elsewhere":   # set_fibers: one "ring", the uploaded count and radius
+            ring_first[:] = 0
+            values.update(uRings=1, uFibersPerContainer=self.plan.fibers_per_container, uFiberRadius=self._key[1])
         for name, value in values.items():
             if name in prog:
                 prog[name].value = value
@@ -382,7 +407,7 @@ class ExplicitRenderer:
         price for a slider move; the virtual one only uploads uniforms)."""
         if self.scene is None:
             raise RuntimeError("ExplicitRenderer.render: call set_scene first")
-        if _geometry_key(p) != self._key:
+        if _geometry_key(p) != self._key and self._key[0] != "fibers made elsewhere":
             self.set_scene(self.scene, p)
         ignored = ignored_shape(p)
         if ignored and ignored != self._warned:
