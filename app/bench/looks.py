@@ -63,7 +63,7 @@ def gaussian_derivative_kernel(sigma: float) -> np.ndarray:
 
 
 def _separable(img: np.ndarray, kernels: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
-    """Convolve along rows (axis 0) with kernels[0] and along columns (axis 1) with kernels[1], edges reflected."""
+    """Convolve along axis 0 with kernels[0], then along axis 1 with kernels[1]; edges reflected."""
     a = np.asarray(img, np.float64)
     for axis, k in ((0, kernels[0]), (1, kernels[1])):
         r = len(k) // 2
