@@ -94,13 +94,15 @@ def test_child_offsets_count_bounds_and_seed():
         strand_reference.child_offsets(5, 0)
 
 
-def test_children_follow_their_strand_at_a_bounded_constant_offset():
+@pytest.mark.parametrize("taper", [0.0, 0.8])
+def test_children_follow_their_strand_at_a_bounded_constant_offset(taper):
     from app.scene.grooms import container_rows
 
     t = np.linspace(0.0, 1.0, 9)
     strands = np.stack([np.stack([np.cos(3 * t) + k, np.sin(3 * t), 2 * t], -1) for k in range(3)])
     R = 0.1
-    rows = container_rows(strands, np.full(3, R), 0.0, np.zeros(3))
+    rows = container_rows(strands, np.full(3, R), taper, np.zeros(3))
+    w = lambda k, tt: (rows[k, 3] + tt * (rows[k, 7] - rows[k, 3]))[..., None]   # noqa: E731
     offsets = strand_reference.child_offsets(3, 16, seed=1)
     rec = strand_reference.child_records(rows, offsets).reshape(len(rows), 16, 6)
     half = rec[..., :5].copy().view(np.float16).astype(np.float64)
@@ -114,9 +116,12 @@ def test_children_follow_their_strand_at_a_bounded_constant_offset():
     per_strand = np.linalg.norm(d, axis=-1).reshape(3, 8, 16)
     assert np.allclose(per_strand, per_strand[:, :1], atol=2e-3)
     # a child's end on one piece is its start on the next: no gap at a joint
-    p = lambda k, tt: rows[k, 0:3] + tt[..., None] * axis[k] + R * d[k]       # noqa: E731
+    p = lambda k, tt: rows[k, 0:3] + tt[..., None] * axis[k] + w(k, tt) * d[k]   # noqa: E731
     for k in range(7):
         assert np.allclose(p(k, t1[k]), p(k + 1, t0[k + 1]), atol=2e-3 * R + 2e-3 * 0.4)
+    # the offset from the strand at its tip is (1 - taper) R at most
+    tip = np.linalg.norm(p(7, t1[7]) - strands[np.asarray(rows[7, 19], int), -1], axis=-1)
+    assert tip.max() <= (1.0 - taper) * R * (1 + 1e-2) + 1e-3 and tip.max() >= 0.8 * (1.0 - taper) * R
 
 
 # --- a tiny run on a shared groom ---------------------------------------------------------------------------
@@ -143,3 +148,18 @@ def test_suite_smoke_on_one_groom(ctx, tmp_path):
     assert len(labels) == 2 and labels[0].startswith("Curly_100.ply reference") and labels[1].startswith("before")
     boxes, _ = layout_of(sheet)
     assert boxes[0][1] == boxes[1][1]                                         # one row: reference | before
+
+
+def test_set_fibers_refuses_records_that_do_not_fit_the_rows(ctx):
+    from app.render.explicit import ExplicitRenderer
+    from app.scene.grooms import container_rows
+    from app.scene.containers import Scene
+
+    strands = np.stack([np.stack([np.zeros(3), np.zeros(3), np.linspace(0, 1, 3)], -1)])
+    scene = Scene(container_rows(strands, np.full(1, 0.1), 0.0, np.zeros(3)), np.zeros(3), "one", 1)
+    records = strand_reference.child_records(scene.segments, strand_reference.child_offsets(1, 4))
+    e = ExplicitRenderer(ctx)
+    with pytest.raises(ValueError, match="records"):
+        e.set_fibers(scene, records[:-1], 4, 0.01)
+    assert e.set_fibers(scene, records, 4, 0.01).fibers == 4
+    e.release()

@@ -168,9 +168,12 @@ def judge(ref_frame, frame) -> Row:
     """The suite's figures for one picture against the reference (both ``Frame``s with colour and ids)."""
     href, hv = ref_frame.ids[..., 0] > 0, frame.ids[..., 0] > 0
     deg, frac = orientation_agreement(ref_frame.color, href, frame.color, hv)
+    both = href & hv
+    luma = lambda f: round(float(luminance(f.color)[both].mean()), 4) if both.any() else None  # noqa: E731
     return {"iou": round(coverage_iou(href, hv), 4), "orientation_deg": round(deg, 2),
             "oriented_frac": round(frac, 4), "covered_reference": round(float(href.mean()), 4),
-            "covered_virtual": round(float(hv.mean()), 4)}
+            "covered_virtual": round(float(hv.mean()), 4), "luma_reference": luma(ref_frame),
+            "luma_virtual": luma(frame)}
 
 
 def run(env, cfg: dict, variants: dict[str, list[str]] | None = None) -> list[Row]:
@@ -191,7 +194,8 @@ def run(env, cfg: dict, variants: dict[str, list[str]] | None = None) -> list[Ro
     scene = build_scene(p)
     cam = Camera.from_params(p, scene, aspect=size[0] / size[1])
     t0 = time.perf_counter()
-    ref = strand_reference.build(p, scene, max_instances=cfg.get("max_instances", strand_reference.MAX_INSTANCES))
+    ref = strand_reference.build(p, scene, max_instances=cfg.get("max_instances", strand_reference.MAX_INSTANCES),
+                                 tip_taper=cfg.get("tip_taper", 0.0))
     build_s = time.perf_counter() - t0
     explicit = ExplicitRenderer(env.ctx, budget_bytes=max(env.budget_bytes, 1 << 30))
     t0 = time.perf_counter()
@@ -212,7 +216,8 @@ def run(env, cfg: dict, variants: dict[str, list[str]] | None = None) -> list[Ro
                     "virtual_fibers": ref.virtual_fibers, "reference_fibers": ref.fibers,
                     "reference_strands": ref.strands, "children": ref.children,
                     "reference_segments": ref.n_segments, "reference_fiber_radius": round(ref.fiber_radius, 4),
-                    "capped": "yes" if ref.capped else "no", "reference_build_s": round(build_s, 2),
+                    "capped": "yes" if ref.capped else "no", "reference_tip_taper": ref.tip_taper,
+                    "reference_build_s": round(build_s, 2),
                     "reference_ms": round(1e3 * ref_s, 1), "virtual_ms": round(1e3 * (time.perf_counter() - t0), 1)}
         rows.append(row)
         shown.append((label, frame.color, row))
@@ -248,6 +253,7 @@ COLUMNS = [("groom", "groom"), ("variant", "variant"), ("status", "status"), ("i
            ("virtual_fibers", "vfiber fibers"), ("reference_fibers", "reference fibers"),
            ("children", "children/strand"), ("capped", "capped"), ("reference_fiber_radius", "child radius / R"),
            ("covered_reference", "covered ref"), ("covered_virtual", "covered vfiber"),
+           ("luma_reference", "luma ref"), ("luma_virtual", "luma vfiber"),
            ("reference_ms", "ref ms"), ("virtual_ms", "vfiber ms")]
 
 NOTES = (f"Reference: the groom's own strands plus child strands (app/bench/strand_reference.py) through the "
@@ -255,7 +261,8 @@ NOTES = (f"Reference: the groom's own strands plus child strands (app/bench/stra
          f"{COVERAGE_BLUR_PX:g} px, thresholded at {COVERAGE_THRESHOLD:g}. orientation: structure tensor of the "
          f"shaded luminance (gradient sigma {GRADIENT_SIGMA_PX:g} px, tensor sigma {ORIENTATION_SCALE_PX:g} px), "
          f"median |angle difference| mod 180 deg over pixels covered in both with coherence >= "
-         f"{COHERENCE_MIN:g} in both; compared px: that set's fraction of the pixels covered in both. capped: "
+         f"{COHERENCE_MIN:g} in both; compared px: that set's fraction of the pixels covered in both. luma: mean "
+         f"Rec. 709 luma of the 8-bit picture over pixels covered in both (not judged; for the colour work). capped: "
          f"the reference drew fewer children than vfiber's fibers per strand (strand_reference.MAX_INSTANCES), "
          f"each widened (child radius / R) to keep the strand's projected cross-section. Sheets: sheet_<groom>.png.")
 

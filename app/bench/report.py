@@ -158,6 +158,7 @@ def targets(results: dict[str, list[Row]]) -> list[Row]:
                                 f"{r['differ_brute_px']} px differ",
                     "met": r["tests_vs_brute"] >= 50 and r["differ_brute_px"] == 0})
     out += grooms.targets(results.get("grooms") or [])
+    out += looks.targets(results.get("looks") or [])
     return out
 
 

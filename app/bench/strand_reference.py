@@ -9,7 +9,7 @@ in the parent's parallel-transported frame (so a child follows every bend of its
 "simple" children and XGen's clumped children do without clump or noise). R is the virtual scene's
 container radius, which ``scene_from_groom`` ties to strand spacing (0.75 x the median distance between
 neighbouring roots), so children of neighbouring strands just overlap, as an artist sets them. Children run
-the full strand length and do not taper.
+the full strand length; by default their offset stays R to the tip (``tip_taper`` gathers them there).
 
 How it is drawn. The explicit baseline's ribbons and shading (``ExplicitRenderer.set_fibers``): each piece
 of a parent strand is a container row like the virtual renderer's (``grooms.container_rows``: frames
@@ -52,6 +52,7 @@ class Reference:
     fiber_radius: float            # child radius, fraction of R
     virtual_fibers: int            # what the virtual renderer draws for the same groom and parameters
     capped: bool                   # fewer children than virtual fibers per strand (MAX_INSTANCES)
+    tip_taper: float = 0.0         # the children's offset at the tip is (1 - tip_taper) R
 
     @property
     def fibers(self) -> int:
@@ -81,8 +82,8 @@ def child_records(rows: np.ndarray, offsets: np.ndarray, seed: int = SEED) -> np
     pieces ``rows`` (the container rows of S strands, strand-major, column 19 the strand index): d in the
     piece's frame, [t0, t1] between the piece's two joint planes, random tint and roughness bytes.
 
-    A child at unit offset c is P(z) = p0 + R (cx ex + cy ey) + z ez in its piece's frame; it crosses the
-    plane through point A with normal n where n . (p0 - A) + R (n . d) + z (n . ez) = 0."""
+    A child at unit offset c is P(z) = p0 + w(z) (cx ex + cy ey) + z ez in its piece's frame, w(z) = r0 +
+    kappa z; it crosses the plane through A with normal n where n . (p0 - A) + w(z) (n . d) + z (n . ez) = 0."""
     rows = np.asarray(rows, np.float64)
     strand = rows[:, 19].astype(np.int64)
     c = offsets[strand]                                             # (R, C, 2)
@@ -94,11 +95,13 @@ def child_records(rows: np.ndarray, offsets: np.ndarray, seed: int = SEED) -> np
     ex /= np.linalg.norm(ex, axis=1, keepdims=True)
     ey = np.cross(ez, ex)
     d = c[..., 0:1] * ex[:, None] + c[..., 1:2] * ey[:, None]       # (R, C, 3), |d| <= 1
-    r = rows[:, 3][:, None]
+    r0 = rows[:, 3][:, None]
+    kappa = ((rows[:, 7] - rows[:, 3]) / h)[:, None]            # a tapered piece: w(z) = r0 + kappa z
     n0, n1 = rows[:, 8:11], rows[:, 12:15]
+    q0, q1 = np.einsum("rcx,rx->rc", d, n0), np.einsum("rcx,rx->rc", d, n1)
     with np.errstate(divide="ignore", invalid="ignore"):
-        z0 = -r * np.einsum("rcx,rx->rc", d, n0) / np.sum(n0 * ez, 1)[:, None]
-        z1 = h[:, None] - r * np.einsum("rcx,rx->rc", d, n1) / np.sum(n1 * ez, 1)[:, None]
+        z0 = -r0 * q0 / (kappa * q0 + np.sum(n0 * ez, 1)[:, None])
+        z1 = (h[:, None] * np.sum(n1 * ez, 1)[:, None] - r0 * q1) / (kappa * q1 + np.sum(n1 * ez, 1)[:, None])
     t0 = np.where(np.isfinite(z0), z0 / h[:, None], 0.0)
     t1 = np.where(np.isfinite(z1), z1 / h[:, None], 1.0)
     t1 = np.maximum(t0, t1)
@@ -114,9 +117,16 @@ def child_records(rows: np.ndarray, offsets: np.ndarray, seed: int = SEED) -> np
     return out.reshape(-1, 6)
 
 
-def build(p: Params, virtual_scene: Scene, *, max_instances: int = MAX_INSTANCES, seed: int = SEED) -> Reference:
+def build(p: Params, virtual_scene: Scene, *, max_instances: int = MAX_INSTANCES, seed: int = SEED,
+          tip_taper: float = 0.0) -> Reference:
     """The reference strands of the groom ``p["scene.groom_file"]`` beside its virtual scene under ``p``
-    (whose container radius and origin it takes, and whose fiber count it matches, see the module)."""
+    (whose container radius and origin it takes, and whose fiber count it matches, see the module).
+
+    ``tip_taper`` (0 .. 1): the children's offset shrinks linearly along the strand to (1 - tip_taper) of
+    R at the tip, so children gather toward their strand's tip (Blender's Clump); 0, the default, keeps
+    the offset constant."""
+    if not 0.0 <= tip_taper <= 1.0:
+        raise ValueError(f"strand reference: tip_taper = {tip_taper:g}; it must be in 0 .. 1")
     from .. import reference
     from ..scene.grooms import container_rows, load_groom, resample_many
 
@@ -135,7 +145,7 @@ def build(p: Params, virtual_scene: Scene, *, max_instances: int = MAX_INSTANCES
     polylines = polylines[ok]                       # a strand folded onto itself at n_seg pieces: left out
     S = len(polylines)
     R = float(np.median(virtual_scene.segments[:, 3]))
-    rows = container_rows(polylines, np.full(S, R), 0.0, virtual_scene.origin).astype(np.float32)
+    rows = container_rows(polylines, np.full(S, R), tip_taper, virtual_scene.origin).astype(np.float32)
     F = reference.ring_layout(p).fibers_per_container
     virtual_fibers = F * virtual_scene.n_guides
     per_strand = max(1, round(virtual_fibers / S))
@@ -145,7 +155,8 @@ def build(p: Params, virtual_scene: Scene, *, max_instances: int = MAX_INSTANCES
         fiber_radius = min(MAX_WIDENED_RADIUS, fiber_radius * per_strand / children)
     records = child_records(rows, child_offsets(S, children, seed), seed)
     scene = Scene(rows, virtual_scene.origin, f"{groom.path.stem} strands", S)
-    return Reference(scene, records, S, n_seg, children, fiber_radius, virtual_fibers, children < per_strand)
+    return Reference(scene, records, S, n_seg, children, fiber_radius, virtual_fibers, children < per_strand,
+                     tip_taper)
 
 
 def render(ctx, ref: Reference, p: Params, cam: Camera, size: tuple[int, int],
