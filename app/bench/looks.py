@@ -204,13 +204,16 @@ def run(env, cfg: dict, variants: dict[str, list[str]] | None = None) -> list[Ro
     explicit.release()
     explicit.release_targets()
     renderer = Renderer(env.ctx)
-    renderer.set_scene(scene)
-    rows, shown = [], []
+    rows, shown, scenes = [], [], {_scene_key(p): scene}
     for label, sets in variants.items():
         pv, _ = resolve_params(str(path), list(sets))
-        cv = Camera.from_params(pv, scene, aspect=size[0] / size[1])
+        # a variant may rebuild the containers (scene.* keys) but is seen from the reference's camera
+        key = _scene_key(pv)
+        if key not in scenes:
+            scenes[key] = build_scene(pv)
+        renderer.set_scene(scenes[key])
         t0 = time.perf_counter()
-        frame = renderer.render_quality(pv, cv, size, outputs=("color", "ids"))
+        frame = renderer.render_quality(pv, cam, size, outputs=("color", "ids"))
         row: Row = {"groom": name, "variant": label, "sets": " ".join(sets), "width": size[0], "height": size[1],
                     **judge(ref_frame, frame),
                     "virtual_fibers": ref.virtual_fibers, "reference_fibers": ref.fibers,
@@ -226,6 +229,10 @@ def run(env, cfg: dict, variants: dict[str, list[str]] | None = None) -> list[Ro
     if out:
         write_sheet(Path(out) / f"sheet_{Path(name).stem}.png", name, ref, ref_frame.color, shown)
     return rows
+
+
+def _scene_key(p) -> tuple:
+    return tuple(sorted((k, str(v)) for k, v in p.values.items() if k.startswith("scene.")))
 
 
 def sheet_tiles(groom: str, ref, ref_color: np.ndarray, shown: list[tuple[str, np.ndarray, Row]]):
