@@ -35,7 +35,7 @@ from ..render.explicit import ExplicitRenderer
 from ..render.renderer import Frame
 from ..scene.containers import Scene
 
-MAX_INSTANCES = 8_000_000      # ribbons (strand pieces x children): 96 MB of instances, ~7 s per frame here
+MAX_INSTANCES = 8_000_000      # ribbons (strand pieces x children): 96 MB of instances, 6-12 s per frame here
 MAX_SEGMENTS = 24              # pieces per strand: a strand keeps its own vertices up to this many
 MAX_WIDENED_RADIUS = 0.25      # a widened child is at most this fraction of R: past it a child is a tube
 SEED = 15
