@@ -18,9 +18,11 @@ joint planes, so children run on across joints without gaps. Same camera (``Came
 virtual scene), same light, same look parameters.
 
 Count. As many children per strand as the virtual renderer draws fibers per strand with the same
-parameters, unless strands x pieces x children would pass ``MAX_INSTANCES`` ribbons (about 7 s a frame on
+parameters, unless strands x pieces x children would pass ``MAX_INSTANCES`` ribbons (6-12 s a frame on
 this 2-core llvmpipe machine): then fewer children, each widened so that children x width -- the projected
-cross-section of a strand's children -- stays the virtual one's (``Reference.capped`` says so).
+cross-section of a strand's children -- stays the virtual one's (``Reference.capped`` says so). The
+density self-shadow takes the virtual fiber density of ``p`` (``set_fibers`` keeps the look uniforms), which
+that widening keeps equal to the children's.
 """
 
 from __future__ import annotations
