@@ -16,7 +16,8 @@ from .script import emit
 
 
 class Capture:
-    """Screenshots, grabs and turntables (a part of ``Viewer``)."""
+    """Screenshots, grabs and turntables (a part of ``Viewer``). A capture draws over or releases the
+    window's targets, so it sets ``_shown_key`` to None and progressive refinement redraws the view."""
 
     def _init_capture(self) -> None:
         self._turntable: dict[str, Any] | None = None   # File > Render turntable in progress

@@ -11,7 +11,8 @@ from .window import SHADER_POLL_S
 
 
 class HotReload:
-    """Watching and reloading the shaders (a part of ``Viewer``)."""
+    """Watching and reloading the shaders (a part of ``Viewer``). A reload sets ``_shown_key`` to None so
+    that progressive refinement draws the picture again with the new programs."""
 
     def _init_hot_reload(self) -> None:
         self._watch: ProgramCache = self.programs   # the cache whose files are watched for hot reload

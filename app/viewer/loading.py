@@ -22,7 +22,8 @@ SLOW_SCENE_BUILD_S = 0.15               # slower than this: rebuild the scene wh
 
 
 class SceneLoading:
-    """The scene on screen and the one being built (a part of ``Viewer``)."""
+    """The scene on screen and the one being built (a part of ``Viewer``). Adopting a scene uploads it
+    (``vp.set_scene``) and sets ``_shown_key`` to None so that progressive refinement draws it."""
 
     def _init_loading(self) -> None:
         self.scene: Scene | None = None

@@ -43,7 +43,8 @@ def _scale_fraction(name: str) -> float | None:
 
 class Progressive:
     """The plan of samples and strips across UI frames, the stats it publishes, and script benches (a part
-    of ``Viewer``)."""
+    of ``Viewer``). Reads the scene (loading), the render area (window: ``_viewport_rect``) and hands a
+    compile failure to ``_shader_failed`` (hot_reload)."""
 
     def _init_progressive(self) -> None:
         self._shown_key: tuple | None = None       # what the accumulated image shows

@@ -38,7 +38,9 @@ FRAME_HISTORY = 30
 
 
 class WindowLoop:
-    """The glfw window, imgui and the frame loop (a part of ``Viewer``)."""
+    """The glfw window, imgui and the frame loop (a part of ``Viewer``). The loop calls each frame into the
+    other parts: ``_poll_shaders`` (hot_reload), ``_update_scene`` (loading), ``_plan``/``render``
+    (progressive), ``_save_grab``/``_turntable_step`` (capture)."""
 
     def _init_window(self, size: tuple[int, int]) -> None:
         self.controller = CameraController()
