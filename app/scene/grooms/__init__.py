@@ -27,7 +27,7 @@ from __future__ import annotations
 from ..containers import container_rows
 from .build import groom_scene, scene_from_groom
 from .formats import _EXTENSIONS as _EXTENSIONS  # re-exported: the suffix list callers read
-from .formats import FORMATS
+from .formats import FORMATS, GROOM_SUFFIXES
 from .groom import Groom, GroomError
 from .guides import Guides, default_radius, resample, resample_many, strands_to_guides
 from .load import MAX_FILE_BYTES, load_groom, parse_groom
@@ -35,7 +35,7 @@ from .orient import UP_CHOICES, guess_up, up_rotation
 from .segments import MAX_TURN_DEG, SEGMENT_TOLERANCE, auto_segments, chord_errors, joint_turns
 
 __all__ = [
-    "FORMATS", "MAX_FILE_BYTES", "SEGMENT_TOLERANCE", "UP_CHOICES", "Groom", "GroomError", "Guides",
+    "FORMATS", "GROOM_SUFFIXES", "MAX_FILE_BYTES", "SEGMENT_TOLERANCE", "UP_CHOICES", "Groom", "GroomError", "Guides",
     "MAX_TURN_DEG", "auto_segments", "chord_errors", "container_rows", "default_radius", "groom_scene",
     "guess_up", "joint_turns", "load_groom",
     "parse_groom", "resample", "resample_many", "scene_from_groom", "strands_to_guides", "up_rotation",

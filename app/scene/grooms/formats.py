@@ -19,6 +19,7 @@ from .groom import GroomError
 
 FORMATS = ("hair", "data", "tfx", "ply")
 _EXTENSIONS = {".hair": "hair", ".data": "data", ".tfx": "tfx", ".ply": "ply"}
+GROOM_SUFFIXES = tuple(_EXTENSIONS)  # the one list of groom file suffixes (CLI, viewer, presets, export)
 
 
 @dataclass
