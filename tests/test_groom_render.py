@@ -32,7 +32,8 @@ from hypothesis import strategies as st
 from app.params import Params
 from app.render.camera import Camera
 from app.render.renderer import scene_gpu_bytes
-from app.scene import containers, grooms
+from app.scene import containers
+from app.scene.grooms import build as groom_build
 from app.scene.containers import Scene
 from app.scene.groom_info import GroomScene
 from app.scene.grooms import (
@@ -389,7 +390,7 @@ def test_loops_at_one_segment_are_no_usable_strands(monkeypatch: pytest.MonkeyPa
     auto = groom_scene(g, Params({}))                       # the automatic count never collapses a guide
     assert auto.source.segments > 1 and auto.n_segments > 0
     # scene.segments = 1 means automatic for grooms, so force one segment through the search itself.
-    monkeypatch.setattr(grooms, "auto_segments", lambda polylines, radii, seed=0: (1, 0.0, "forced"))
+    monkeypatch.setattr(groom_build, "auto_segments", lambda polylines, radii, seed=0: (1, 0.0, "forced"))
     with pytest.raises(GroomError, match="^loops.data: no usable strands: every guide comes back to its root"):
         groom_scene(g, Params({}))
 

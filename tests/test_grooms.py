@@ -17,7 +17,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from app.scene import grooms
+from app.scene.grooms import guides as groom_guides
+from app.scene.grooms import load as groom_load
 from app.scene.grooms import (
     Groom, GroomError, default_radius, load_groom, parse_groom, resample, resample_many, strands_to_guides,
     up_rotation,
@@ -259,7 +260,7 @@ def test_cluster_radius_covers_most_members() -> None:
     guides = strands_to_guides(g, cluster=20, seed=1)
     covered = []
     for i, k in enumerate(guides.labels):
-        d = grooms._point_polyline_distance(res[i:i + 1], guides.polylines[k][None]).max()
+        d = groom_guides._point_polyline_distance(res[i:i + 1], guides.polylines[k][None]).max()
         covered.append(d <= guides.radii[k] + 1e-9)
     assert np.mean(covered) >= 0.85
 
@@ -378,7 +379,7 @@ def test_magic_wins_over_extension_and_missing_file() -> None:
 def test_size_guard(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     path = tmp_path / "big.data"
     path.write_bytes(data_bytes(hanging()))
-    monkeypatch.setattr(grooms, "MAX_FILE_BYTES", 100)
+    monkeypatch.setattr(groom_load, "MAX_FILE_BYTES", 100)
     with pytest.raises(GroomError, match="larger than the 100-byte limit"):
         load_groom(path)
 

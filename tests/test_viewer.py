@@ -625,7 +625,7 @@ def test_a_slow_groom_refines_in_strips_with_the_ui_live_and_ends_exact(tmp_path
 @pytest.mark.skipif(not SINTEL.is_file(), reason="the shared hair data is not there")
 def test_the_strand_sketch_joins_each_strands_own_vertices_only(ctx, renderer):
     from app.scene.grooms import load_groom
-    from app.viewer.app import strand_scene
+    from app.viewer.loading import strand_scene
     from app.viewer.display import ViewportRenderer
 
     groom = load_groom(SINTEL)

@@ -46,7 +46,7 @@ FRAGMENTS_PER_SECOND = 1.0e6
 # Scene.from_polylines builds containers one segment at a time: about 0.2 ms each here (5,000 guides of 64
 # segments took 63 s), so 200,000 guides of 64 segments would take ~40 minutes before the first pixel.
 SECONDS_PER_GENERATED_SEGMENT = 2.0e-4
-# k-means (app/scene/grooms.py: _kmeans) on this machine: 60-370 ns per strand x cluster, measured at
+# k-means (app/scene/grooms/guides.py: _kmeans) on this machine: 60-370 ns per strand x cluster, measured at
 # 8,000-50,000 strands and 500-5,000 clusters; the upper end, so a slow clustering is never waved through
 SECONDS_PER_STRAND_CLUSTER = 4.0e-7
 # Bytes per output pixel a frame holds at its peak: the render targets (colour 4, ids 16, normal+depth 16,

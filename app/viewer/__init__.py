@@ -4,8 +4,10 @@
     gui.py       gui(state): the imgui panels, built from app.params.SPEC; edits state only
     navigate.py  the camera controller: input snapshot -> camera.* parameters
     display.py   the GL side: fiber samples, accumulation, debug views, container proxies
-    script.py    scripted sessions (turntables, screenshots, tests)
-    app.py       the window loop and run_viewer(), the entry point of ``vfiber view``
+    script.py    scripted sessions (turntables, screenshots, tests); host.py: what it may call on the viewer
+    app.py       Viewer, put together from window.py (the loop, input), progressive.py (samples and strips
+                 across UI frames), loading.py (scene builds), hot_reload.py and capture.py (screenshots,
+                 grabs, turntables); run_viewer(), the entry point of ``vfiber view``
 
 Importing this package does not import imgui or glfw; ``run_viewer`` does, when called.
 """

@@ -63,7 +63,7 @@ from .navigate import Input
 from .state import VIEWS
 
 if TYPE_CHECKING:
-    from .app import Viewer
+    from .host import ViewerHost
 
 PREFIX = "vfiber-script: "
 ACTIONS = ("open", "set", "wait", "wait_final", "screenshot", "grab", "save", "view", "key", "drag",
@@ -169,7 +169,7 @@ class ScriptRunner:
     def done(self) -> bool:
         return self.index >= len(self.script.steps) and self._loop is None
 
-    def tick(self, viewer: "Viewer") -> None:
+    def tick(self, viewer: "ViewerHost") -> None:
         """Called at the start of a frame. Runs steps until one needs frames to pass."""
         if self.exit_code is not None or viewer.loading():
             return           # a scene being built: its steps would act on the one before
@@ -215,13 +215,13 @@ class ScriptRunner:
             if waits:
                 return
 
-    def _fail(self, viewer: "Viewer", message: str, step: dict[str, Any] | None = None) -> None:
+    def _fail(self, viewer: "ViewerHost", message: str, step: dict[str, Any] | None = None) -> None:
         import sys
         where = f"step {self.index} {json.dumps(step, default=str)}" if step is not None else f"step {self.index}"
         print(f"vfiber view: script {self.script.source}: {where}: {message}", file=sys.stderr, flush=True)
         self.exit_code = 2
 
-    def _run(self, viewer: "Viewer", step: dict[str, Any]) -> bool:
+    def _run(self, viewer: "ViewerHost", step: dict[str, Any]) -> bool:
         """Run one step; True when the script must wait for frames before the next."""
         state = viewer.state
         action = next(iter(step))
@@ -362,7 +362,7 @@ class ScriptRunner:
             return True
         return False
 
-    def _continue_loop(self, viewer: "Viewer") -> None:
+    def _continue_loop(self, viewer: "ViewerHost") -> None:
         loop = self._loop
         assert loop is not None
         state = viewer.state
