@@ -452,13 +452,13 @@ def cmd_turntable(args) -> int:
 
 
 def cmd_info(args) -> int:
-    from . import reference
+    from .fibers import fiber_count, ring_layout
     from .render.renderer import frame_gpu_bytes, scene_gpu_bytes
 
     p, label = resolve_params(scene_target(args), args.set)
     scene = build_scene_for(p)
-    thesis, exact = reference.fiber_count(p, scene.n_segments and scene.n_guides or 0)
-    lay = reference.ring_layout(p)
+    thesis, exact = fiber_count(p, scene.n_segments and scene.n_guides or 0)
+    lay = ring_layout(p)
     lo, hi = scene.bounds()
     print(f"source           {label}")
     print(f"guides           {scene.n_guides}")

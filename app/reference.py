@@ -1,8 +1,10 @@
-"""The float64 reference: fiber placement and a brute-force nearest hit, in numpy.
+"""The float64 reference: container geometry and a brute-force nearest hit, in numpy.
 
-It is the judge of the shader. Every function here has a GLSL twin of the same name (in ``glsl/``), and the
-tests hold one against the other. The reference tests *every* fiber of every ring for every ray, so it is
-slow and simple on purpose.
+It is the judge of the shader and stands beside the renderer, never under it: both import the fiber
+model (where fibers sit, the hash, the shape) from ``app.fibers``; the renderer never imports this module.
+Every function here has a GLSL twin of the same name (in ``glsl/``; docs/architecture.md, "Twins"), and
+the tests hold one against the other. The reference tests *every* fiber of every ring for every ray, so it
+is slow and simple on purpose.
 
 Geometry, in words (the GLSL files say the same thing in code):
 
@@ -19,169 +21,19 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
+from . import fibers
+# The model itself (placement, hash, shape) is app.fibers'; it is named here too so that a test holds a
+# GLSL function against ``reference.NAME`` whichever side of the line between model and judge it sits on.
+from .fibers import (CH_ANGULAR, CH_CURL, CH_LENGTH, CH_RADIAL, CH_RING, CH_ROUGH, CH_TINT,  # noqa: F401
+                     CURL_PATTERNS, LAYOUT_KEYS, THESIS_LCG, TWIST_PATTERNS, RingLayout, Shape, all_fibers,
+                     fiber_center, fiber_center_at, fiber_count, fiber_hash, fiber_key, fiber_random,
+                     fiber_randoms, key_random, lowbias32, ring_key, ring_layout, shape_scale, shape_twist,
+                     thesis_random)
 from .params import Params
 from .scene.containers import Scene
-
-# Random-number channels: one independent number per purpose and fiber.
-CH_RADIAL, CH_ANGULAR, CH_LENGTH, CH_TINT, CH_ROUGH, CH_CURL, CH_RING = range(7)
-THESIS_LCG = 1207.523  # thesis expression 3.4
-
-
-# --------------------------------------------------------------------------------------------------
-# Random numbers (glsl/common/hash.glsl)
-# --------------------------------------------------------------------------------------------------
-def lowbias32(x):
-    """Chris Wellons' lowbias32 integer hash, on uint32 arrays (wrapping arithmetic as in GLSL)."""
-    x = np.asarray(x, dtype=np.uint32).copy()
-    with np.errstate(over="ignore"):
-        x ^= x >> np.uint32(16)
-        x *= np.uint32(0x7FEB352D)
-        x ^= x >> np.uint32(15)
-        x *= np.uint32(0x846CA68B)
-        x ^= x >> np.uint32(16)
-    return x
-
-
-def fiber_hash(seed, guide, ring, fiber, channel):
-    with np.errstate(over="ignore"):
-        h = lowbias32(np.uint32(seed) + np.uint32(0x9E3779B9))
-    for part in (guide, ring, fiber, channel):
-        h = lowbias32(h ^ np.asarray(part).astype(np.uint32))
-    return h
-
-
-def fiber_random(seed, guide, ring, fiber, channel):
-    """Uniform in [0, 1): 24 bits, exactly representable in float32 so GLSL and numpy agree bit for bit."""
-    return (fiber_hash(seed, guide, ring, fiber, channel) >> np.uint32(8)).astype(np.float64) / 16777216.0
-
-
-def thesis_random(slot_deg, ring, channel, dtype=np.float32):
-    """The thesis's LCG, fract(1207.523 * phi), phi the fiber's angular position in degrees.
-
-    Extended to several channels and rings by small offsets of phi. Evaluated in ``dtype``: float32 is what
-    a shader computes (and the source of its instability), float64 the ideal.
-    """
-    x = (np.asarray(slot_deg, dtype) + dtype(0.37) * np.asarray(channel, dtype)
-         + dtype(0.11) * np.asarray(ring, dtype))
-    y = dtype(THESIS_LCG) * x
-    return (y - np.floor(y)).astype(np.float64)
-
-
-# --------------------------------------------------------------------------------------------------
-# Ring layout (computed once per parameter set on the CPU, uploaded as uniforms)
-# --------------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class RingLayout:
-    rings: int
-    rho: np.ndarray        # ring centre radius, unit space
-    n: np.ndarray          # fibers on the ring (int64)
-    dphi: np.ndarray       # angular slot width, radians
-    rot: np.ndarray        # ring rotation, radians
-    max_dr: np.ndarray     # largest radial offset actually used (jitter already applied)
-    max_dphi: np.ndarray   # largest angular offset actually used
-    reach: np.ndarray      # angular reach of a fiber about its slot angle: max_dphi + disc half-angle
-    fiber_radius: float
-    length_jitter: float
-    thesis_hash: bool
-    seed: int
-
-    @property
-    def first(self) -> np.ndarray:
-        """Index of each ring's first fiber in the container's flat fiber numbering."""
-        return np.concatenate([[0], np.cumsum(self.n)[:-1]])
-
-    @property
-    def fibers_per_container(self) -> int:
-        return int(self.n.sum())
-
-
-# The parameters ring_layout reads: a frame asks for the layout several times (uniforms, loop budget), so
-# it is computed once per distinct set and shared, its arrays read-only.
-LAYOUT_KEYS = ("fibers.rings", "fibers.phi_step", "fibers.phi_increment", "fibers.even_spacing", "fibers.hash",
-               "fibers.seed", "fibers.fiber_radius", "fibers.radial_jitter", "fibers.angular_jitter",
-               "fibers.length_jitter")
-
-
-def ring_layout(p: Params) -> RingLayout:
-    return _ring_layout(tuple(p[k] for k in LAYOUT_KEYS))
-
-
-@lru_cache(maxsize=64)
-def _ring_layout(values: tuple) -> RingLayout:
-    p = dict(zip(LAYOUT_KEYS, values))
-    lay = _compute_ring_layout(p)
-    for arr in (lay.rho, lay.n, lay.dphi, lay.rot, lay.max_dr, lay.max_dphi, lay.reach):
-        arr.setflags(write=False)
-    return lay
-
-
-def _compute_ring_layout(p: dict) -> RingLayout:
-    K = p["fibers.rings"]
-    i = np.arange(K, dtype=np.float64)
-    rho = 1.0 - (i + 0.5) / K
-    half_width = 0.5 / K
-    step_deg = (p["fibers.phi_step"] + i * p["fibers.phi_increment"]) * (
-        1.0 + p["fibers.even_spacing"] * (rho[0] / rho - 1.0))
-    n = np.maximum(1, np.floor(360.0 / step_deg + 0.5)).astype(np.int64)
-    dphi = 2.0 * math.pi / n
-    thesis = p["fibers.hash"] == "thesis"
-    seed = p["fibers.seed"]
-    rot = np.zeros(K) if thesis else fiber_random(seed, 0, np.arange(K), 0, CH_RING) * dphi
-    rf = p["fibers.fiber_radius"]
-    max_dr = np.full(K, max(0.0, half_width - rf) * p["fibers.radial_jitter"])
-    rho_min = rho - max_dr
-    # half the angle a fiber's disc covers seen from the axis; a disc that reaches the axis covers half the
-    # turn. rho_min is 0 on the innermost ring at full radial jitter: rf / 0 would be nan for rf = 0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.where(rho_min > rf, rf / rho_min, 1.0) if rf > 0 else np.zeros(K)
-    disc_half_angle = np.arcsin(ratio)
-    max_dphi = np.maximum(0.0, 0.5 * dphi - disc_half_angle) * p["fibers.angular_jitter"]
-    return RingLayout(K, rho, n, dphi, rot, max_dr, max_dphi, max_dphi + disc_half_angle, rf,
-                      p["fibers.length_jitter"], thesis, seed)
-
-
-def fiber_count(p: Params, n_containers: int = 1) -> tuple[float, int]:
-    """(thesis Expression 4.1, exact count) for ``n_containers`` containers.
-
-    Expression 4.1 sums 360/phi_step over the rings; the exact count is what is drawn, since a ring holds a
-    whole number of fibers (360/phi_step rounded to the nearest integer).
-    """
-    lay = ring_layout(p)
-    step = (p["fibers.phi_step"] + np.arange(lay.rings) * p["fibers.phi_increment"]) * (
-        1.0 + p["fibers.even_spacing"] * (lay.rho[0] / lay.rho - 1.0))
-    return float((360.0 / step).sum() * n_containers), int(lay.n.sum()) * n_containers
-
-
-def fiber_randoms(lay: RingLayout, guide, ring, j, channel):
-    """Per-fiber random number from the selected hash."""
-    if lay.thesis_hash:
-        slot_deg = np.degrees(lay.rot[ring] + j * lay.dphi[ring])
-        return thesis_random(slot_deg, ring, channel)
-    return fiber_random(lay.seed, guide, ring, j, channel)
-
-
-def fiber_center(lay: RingLayout, guide, ring, j):
-    """Unit-space centre (x, y) and end parameter v_end of fiber j on ring ``ring`` of guide ``guide``."""
-    ring = np.asarray(ring)
-    j = np.asarray(j)
-    ur = fiber_randoms(lay, guide, ring, j, CH_RADIAL)
-    ua = fiber_randoms(lay, guide, ring, j, CH_ANGULAR)
-    ul = fiber_randoms(lay, guide, ring, j, CH_LENGTH)
-    radius = lay.rho[ring] + (2.0 * ur - 1.0) * lay.max_dr[ring]
-    angle = lay.rot[ring] + j * lay.dphi[ring] + (2.0 * ua - 1.0) * lay.max_dphi[ring]
-    v_end = 1.0 - lay.length_jitter * ul
-    return radius * np.cos(angle), radius * np.sin(angle), v_end
-
-
-def all_fibers(lay: RingLayout, guide: int):
-    ring = np.repeat(np.arange(lay.rings), lay.n)
-    j = np.arange(lay.fibers_per_container) - np.repeat(lay.first, lay.n)
-    cx, cy, v_end = fiber_center(lay, guide, ring, j)
-    return ring, j, cx, cy, v_end
 
 
 # --------------------------------------------------------------------------------------------------
@@ -431,60 +283,9 @@ def rings_crossed(scene: Scene, p: Params, ro, rd, t_near: float = 0.0) -> np.nd
 
 
 # --------------------------------------------------------------------------------------------------
-# Curved fibers (glsl/fibers/shape.glsl, curved.glsl, shaped.glsl: traverse_shaped)
+# Curved fibers (glsl/fibers/curved.glsl, shaped.glsl: traverse_shaped; the shape is app/fibers/shape.py)
 # --------------------------------------------------------------------------------------------------
-TWIST_PATTERNS = {"uniform": 0, "ramped": 1, "alternating": 2}
-CURL_PATTERNS = {"helix": 0, "wave": 1}
-MAX_SUB = 16
-
-
-@dataclass(frozen=True)
-class Shape:
-    ellipsoid: float
-    twist: float
-    twist_pattern: int
-    curl_amplitude: float      # unit space
-    curl_frequency: float
-    curl_pattern: int
-
-    @staticmethod
-    def from_params(p: Params) -> "Shape":
-        return Shape(p["shape.ellipsoid"], p["shape.twist"], TWIST_PATTERNS[p["shape.twist_pattern"]],
-                     p["shape.curl_amplitude"] / p["fibers.rings"], p["shape.curl_frequency"],
-                     CURL_PATTERNS[p["shape.curl_pattern"]])
-
-    @property
-    def curved(self) -> bool:
-        return self.ellipsoid > 0 or self.curl_amplitude > 0 or self.twist != 0
-
-
-def shape_twist(sh: Shape, v, ring):
-    t = v * v if sh.twist_pattern == 1 else v
-    sgn = np.where((sh.twist_pattern == 2) & (np.asarray(ring) % 2 == 1), -1.0, 1.0)
-    return sgn * 2 * math.pi * sh.twist * t
-
-
-def shape_scale(sh: Shape, v):
-    x = sh.ellipsoid * (2.0 * np.asarray(v) - 1.0)
-    return np.sqrt(np.maximum(0.0, 1.0 - x * x))
-
-
-def fiber_center_at(sh: Shape, rest_x, rest_y, v, ring, curl_phase):
-    tau = shape_twist(sh, v, ring)
-    ct, st = np.cos(tau), np.sin(tau)
-    e = shape_scale(sh, v)
-    cx, cy = e * (ct * rest_x - st * rest_y), e * (st * rest_x + ct * rest_y)
-    if sh.curl_amplitude > 0:
-        a = 2 * math.pi * (sh.curl_frequency * v + curl_phase)
-        if sh.curl_pattern == 0:
-            cx, cy = cx + sh.curl_amplitude * np.cos(a), cy + sh.curl_amplitude * np.sin(a)
-        else:
-            length = np.hypot(cx, cy)
-            safe = np.where(length > 0, length, 1.0)
-            ax, ay = np.where(length > 0, -cy / safe, 1.0), np.where(length > 0, cx / safe, 0.0)
-            s = sh.curl_amplitude * np.sin(a)
-            cx, cy = cx + s * ax, cy + s * ay
-    return cx, cy
+MAX_SUB = fibers.MAX_SUB
 
 
 def unit_to_v(seg: Segment, z_unit):
@@ -508,7 +309,7 @@ def ring_frame_center(sh: Shape, rest_x, rest_y, curl_phase, P):
     cx, cy = e * rest_x, e * rest_y
     if sh.curl_amplitude > 0:
         a = 2 * math.pi * (sh.curl_frequency * v + curl_phase)
-        if sh.curl_pattern == 0:
+        if sh.curl_pattern == fibers.CURL_HELIX:
             cx, cy = cx + sh.curl_amplitude * np.cos(a - tau), cy + sh.curl_amplitude * np.sin(a - tau)
         else:
             r2 = rest_x * rest_x + rest_y * rest_y
@@ -524,10 +325,10 @@ def chord_pieces(sh: Shape, lay: RingLayout, length, dv, sa, ring, e_lo: float):
     """Chord pieces for an arc of length ``length`` that climbs ``dv`` (curved.glsl: chord_pieces)."""
     rho = lay.rho[ring] + lay.max_dr[ring]
     r = rho + lay.fiber_radius + sh.curl_amplitude
-    rate = 2 * math.pi * abs(sh.twist) * (2.0 if sh.twist_pattern == 1 else 1.0)
-    rate2 = 2.0 * 2 * math.pi * abs(sh.twist) if sh.twist_pattern == 1 else 0.0
+    rate = 2 * math.pi * abs(sh.twist) * (2.0 if sh.twist_pattern == fibers.TWIST_RAMPED else 1.0)
+    rate2 = 2.0 * 2 * math.pi * abs(sh.twist) if sh.twist_pattern == fibers.TWIST_RAMPED else 0.0
     f = 2 * math.pi * sh.curl_frequency
-    curl = sh.curl_amplitude * ((f + rate) ** 2 + rate2 if sh.curl_pattern == 0 else f * f)
+    curl = sh.curl_amplitude * ((f + rate) ** 2 + rate2 if sh.curl_pattern == fibers.CURL_HELIX else f * f)
     ell = rho * 4.0 * sh.ellipsoid ** 2 / np.maximum(e_lo, 0.25) ** 3
     bend_v = r * (rate * rate + rate2) + ell + curl
     bend_l = dv * dv * bend_v + 2.0 * rate * dv * length * sa

@@ -36,6 +36,8 @@ import moderngl
 import numpy as np
 
 from .. import reference
+from ..fibers import (CH_ANGULAR, CH_LENGTH, CH_RADIAL, CH_TINT, all_fibers, fiber_randoms, ring_layout,
+                     thesis_random)
 from ..params import SPEC, ParamError, Params, max_fiber_radius
 from ..render.camera import Camera
 from ..render.renderer import LOOP_CAP, MAX_RINGS, Renderer, ring_uniforms
@@ -280,7 +282,7 @@ def case_radius(lab: Lab) -> Case:
                 if shaped:
                     values.update({"shape.curl_amplitude": 0.3, "shape.twist": 0.5})
                 p = Params(values)
-                lay = reference.ring_layout(p)
+                lay = ring_layout(p)
                 if not all(np.isfinite(getattr(lay, k)).all() for k in ("rho", "max_dr", "max_dphi", "reach")):
                     problems.append(f"layout not finite: rings {rings} jitter {rj} radius {rf:g}")
                 f = lab.render(p, cam, size, mode)
@@ -359,7 +361,7 @@ def case_many_fibers(lab: Lab) -> Case:
         rate = float(differ.mean())
         worst = max(worst, rate)
         ok &= rate == 0 and runout == 0 and finite and fast == 0
-        fibers = reference.ring_layout(p).fibers_per_container
+        fibers = ring_layout(p).fibers_per_container
         details[name] = {"fibers": fibers, "differ": rate, "runout_pixels": runout, "fast_coverage_differs": fast,
                          "exact_draws": e.draws, "brute_draws": frames["brute"].draws,
                          "exact_iters_max": float(e.iters.max()), "seconds": time.perf_counter() - t}
@@ -386,15 +388,15 @@ def case_grazing(lab: Lab) -> Case:
             eps = 0.5 * 10.0 ** -k
             p0 = Params({"fibers.rings": K, "fibers.phi_step": 3.0, "fibers.fiber_radius": 0.1,
                          "fibers.radial_jitter": 1.0, "fibers.angular_jitter": 1.0, "fibers.length_jitter": 0.0})
-            lay = reference.ring_layout(p0)
-            u = reference.fiber_randoms(lay, 0, np.zeros(lay.n[0], int), np.arange(lay.n[0]), reference.CH_RADIAL)
+            lay = ring_layout(p0)
+            u = fiber_randoms(lay, 0, np.zeros(lay.n[0], int), np.arange(lay.n[0]), CH_RADIAL)
             j = int(np.argmax(u))
             # the fiber radius that puts the outermost fiber's edge eps inside the wall:
             # its extent is 1 - (1 - u) (1/K - 2 rf)
             rf = (1.0 / K - eps / (1.0 - u[j])) / 2.0
             p = p0.replace(**{"fibers.fiber_radius": rf})
-            lay = reference.ring_layout(p)
-            _, _, cx, cy, _ = reference.all_fibers(lay, 0)
+            lay = ring_layout(p)
+            _, _, cx, cy, _ = all_fibers(lay, 0)
             scene = Scene.from_polylines([np.array([-2 * axis, 2 * axis])], 1.0, origin=np.zeros(3)).translated(origin)
             lab.show(scene)
             seg = reference.segment(scene.segments[0])
@@ -598,14 +600,14 @@ def slot_overflow(p: Params) -> tuple[float, float, bool]:
     """Fiber centres as the shader computes them (float32) at the layout of ``p``: the largest excursion of
     a centre past the offset that keeps its disc in its angular slot (radians), the largest excursion of a
     disc past its ring's annulus (unit space), and whether each ring's centres stay in index order."""
-    lay = reference.ring_layout(p)
+    lay = ring_layout(p)
     f32 = np.float32
     worst_a = worst_r = 0.0
     ordered = True
     for i in range(lay.rings):
         j = np.arange(lay.n[i])
-        ur = reference.fiber_randoms(lay, 0, np.full_like(j, i), j, reference.CH_RADIAL).astype(f32)
-        ua = reference.fiber_randoms(lay, 0, np.full_like(j, i), j, reference.CH_ANGULAR).astype(f32)
+        ur = fiber_randoms(lay, 0, np.full_like(j, i), j, CH_RADIAL).astype(f32)
+        ua = fiber_randoms(lay, 0, np.full_like(j, i), j, CH_ANGULAR).astype(f32)
         radius = (f32(lay.rho[i]) + (f32(2) * ur - f32(1)) * f32(lay.max_dr[i])).astype(np.float64)
         angle = (f32(lay.rot[i]) + j.astype(f32) * f32(lay.dphi[i])
                  + (f32(2) * ua - f32(1)) * f32(lay.max_dphi[i])).astype(np.float64)
@@ -748,7 +750,7 @@ def gpu_fiber_attributes(ctx: moderngl.Context, p: Params, guide: int) -> np.nda
     """(fibers, 4) float32 from the shader's own layout code: centre x, y, vEnd, tint random."""
     from ..gl.shaders import ProgramCache, glsl_root
 
-    lay = reference.ring_layout(p)
+    lay = ring_layout(p)
     total = lay.fibers_per_container
     width = 256
     height = (total + width - 1) // width
@@ -785,11 +787,11 @@ def gpu_fiber_attributes(ctx: moderngl.Context, p: Params, guide: int) -> np.nda
 
 def float32_attributes(p: Params, guide: int) -> np.ndarray:
     """The same attributes emulated in numpy float32 (integer hash: bit-exact 24-bit randoms)."""
-    lay = reference.ring_layout(p)
-    ring, j, *_ = reference.all_fibers(lay, guide)
+    lay = ring_layout(p)
+    ring, j, *_ = all_fibers(lay, guide)
     f32 = np.float32
-    u = [reference.fiber_randoms(lay, guide, ring, j, ch).astype(f32)
-         for ch in (reference.CH_RADIAL, reference.CH_ANGULAR, reference.CH_LENGTH, reference.CH_TINT)]
+    u = [fiber_randoms(lay, guide, ring, j, ch).astype(f32)
+         for ch in (CH_RADIAL, CH_ANGULAR, CH_LENGTH, CH_TINT)]
     v_end = f32(1) - f32(lay.length_jitter) * u[2]
     return np.stack([v_end, u[3]], 1)
 
@@ -825,7 +827,7 @@ def case_temporal(lab: Lab) -> Case:
         steps = np.quantile(dcol[same], [0.5, 0.999, 1.0]) if same.any() else np.zeros(3)
         # the attributes the shader gives each visible fiber, from its own code, against float32 numpy
         seen = np.unique(ids[ids[..., 0] > 0].reshape(-1, 3), axis=0)
-        lay = reference.ring_layout(p)
+        lay = ring_layout(p)
         attr_ok = True
         for g in np.unique(seen[:, 0]):
             gpu = gpu_fiber_attributes(lab.ctx, p, int(g) - 1)
@@ -852,13 +854,13 @@ def case_temporal(lab: Lab) -> Case:
     for name, values in (("default 10 rings x 1 deg", {}),
                          ("64 rings x 0.01 deg", {"fibers.rings": 64, "fibers.phi_step": 0.01,
                                                   "fibers.fiber_radius": 0.005})):
-        lay = reference.ring_layout(Params({**values, "fibers.hash": "thesis"}))
+        lay = ring_layout(Params({**values, "fibers.hash": "thesis"}))
         ring = np.repeat(np.arange(lay.rings), lay.n)
         j = np.arange(lay.fibers_per_container) - np.repeat(lay.first, lay.n)
         slot = np.degrees(lay.rot[ring] + j * lay.dphi[ring])
         diffs = []
-        for ch in (reference.CH_RADIAL, reference.CH_ANGULAR, reference.CH_LENGTH):
-            d = np.abs(reference.thesis_random(slot, ring, ch, np.float32) - reference.thesis_random(slot, ring, ch, np.float64))
+        for ch in (CH_RADIAL, CH_ANGULAR, CH_LENGTH):
+            d = np.abs(thesis_random(slot, ring, ch, np.float32) - thesis_random(slot, ring, ch, np.float64))
             diffs.append(d)
         d = np.max(diffs, 0)
         flips[name] = {"gt_1e-3": float((d > 1e-3).mean()), "gt_1e-2": float((d > 1e-2).mean()),

@@ -30,6 +30,7 @@ from PIL import Image
 from tqdm import tqdm
 
 from .. import reference
+from ..fibers import CH_LENGTH, CH_RADIAL, ring_layout, thesis_random
 from ..gl.context import create_headless
 from ..params import Params
 from ..presets import find_preset
@@ -258,14 +259,14 @@ def antialias_section(b: Bench, size, out: Path, bar) -> list[dict]:
 
 def hash_section(b: Bench, size, out: Path, bar) -> list[dict]:
     p = find_preset("default").params
-    lay = reference.ring_layout(p)
+    lay = ring_layout(p)
     ring = np.repeat(np.arange(lay.rings), lay.n)
     j = np.arange(lay.fibers_per_container) - np.repeat(lay.first, lay.n)
     slot = np.degrees(lay.rot[ring] + j * lay.dphi[ring])
     rows = []
-    for channel, what in ((reference.CH_RADIAL, "radial jitter"), (reference.CH_LENGTH, "length")):
-        r32 = reference.thesis_random(slot, ring, channel, np.float32)
-        r64 = reference.thesis_random(slot, ring, channel, np.float64)
+    for channel, what in ((CH_RADIAL, "radial jitter"), (CH_LENGTH, "length")):
+        r32 = thesis_random(slot, ring, channel, np.float32)
+        r64 = thesis_random(slot, ring, channel, np.float64)
         rows.append({"hash": "thesis fract(1207.523 phi)", "number": what,
                      "differs_gt_1e-3_pct": 100.0 * (np.abs(r32 - r64) > 1e-3).mean(),
                      "differs_gt_1e-6_pct": 100.0 * (np.abs(r32 - r64) > 1e-6).mean()})

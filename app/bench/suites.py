@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from .. import reference
+from ..fibers import ring_layout
 from ..params import Params
 from ..render.camera import Camera
 from ..render.explicit import DEFAULT_BUDGET_BYTES, ExplicitBudgetError, ExplicitRenderer, compare_frames
@@ -152,7 +153,7 @@ def memory_scene(cfg: dict) -> tuple[Params, Scene, Camera]:
 def memory_run(env: Env, cfg: dict) -> list[Row]:
     p, scene, cam = memory_scene(cfg)
     size = tuple(cfg["size"])
-    lay = reference.ring_layout(p)
+    lay = ring_layout(p)
     row: Row = {"method": cfg["method"], "fibers": lay.fibers_per_container * scene.n_guides,
                 "containers": scene.n_segments, "fibers_per_container": lay.fibers_per_container,
                 "rings": lay.rings, "width": size[0], "height": size[1], "rss_base": current_rss_bytes()}
@@ -219,7 +220,7 @@ def rings_run(env: Env, cfg: dict) -> list[Row]:
     size = tuple(cfg["size"])
     env.virtual.set_scene(scene)
     base = {"rings": cfg["rings"], "per_ring": cfg["per_ring"],
-            "fibers": reference.ring_layout(p).fibers_per_container}
+            "fibers": ring_layout(p).fibers_per_container}
     rows = []
     for mode in ("fast", "exact"):
         r = dict(base, method=f"virtual-{mode}")
@@ -308,7 +309,7 @@ def accuracy_run(env: Env, cfg: dict) -> list[Row]:
     r = env.virtual
     r.set_scene(scene)
     brute = r.render(p, cam, size, outputs=("ids",), mode="brute")
-    lay = reference.ring_layout(p)
+    lay = ring_layout(p)
     ro, rd = cam.rays(*ref_size)
     hits = reference.brute_nearest(scene, p, ro, rd, t_near=cam.near)
     ref_ids = np.stack([np.where(hits.hit, hits.guide + 1, 0), np.where(hits.hit, hits.ring, 0),

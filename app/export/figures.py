@@ -162,7 +162,7 @@ EXPLICIT_POINTS = 8          # points per explicit strand (the guides' segments 
 
 def _fiber_params(target: str, fibers: int):
     """Params whose exact fiber count is close to ``fibers`` for the groom: rings and phi_step chosen."""
-    from app import reference
+    from app.fibers import ring_layout
     from app.cli import resolve_params
     from app.scene.generators import build_scene
 
@@ -177,7 +177,7 @@ def _fiber_params(target: str, fibers: int):
             continue
         q = p.replace(**{"fibers.rings": rings, "fibers.phi_step": step, "fibers.phi_increment": 0.0,
                          "fibers.even_spacing": 0.0, "fibers.fiber_radius": min(0.45 / rings, 0.02)})
-        n = reference.ring_layout(q).fibers_per_container * guides
+        n = ring_layout(q).fibers_per_container * guides
         if best is None or abs(n - fibers) < abs(best[1] - fibers):
             best = (q, n)
     return best

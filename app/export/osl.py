@@ -26,7 +26,7 @@ Decisions
 =========
 
 * **Ring layout computed in the shader**, not baked as arrays: the per-ring numbers of
-  ``app.reference.ring_layout`` are a few flops and one hash per ring visit, and computing them from the
+  ``app.fibers.ring_layout`` are a few flops and one hash per ring visit, and computing them from the
   parameters keeps every slider of the Script node live (rings, phi step, jitter...). Baked arrays would
   freeze the layout at export and silently ignore those sliders. The price is float32 instead of float64
   for those numbers; the fiber counts per ring are integers of ``floor(360 / step + 0.5)`` and agree unless

@@ -29,11 +29,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import reference
+from ..fibers import MAX_SUB, ring_layout
 from ..params import Params
 
 SLOW_SECONDS = 60.0          # above this the command line asks for --allow-slow
-CURVED_TEST_PASSES = 18      # 1 + MAX_SUB (16) + 1: a curved-fiber test walks its chord pieces
+CURVED_TEST_PASSES = 1 + MAX_SUB + 1   # a curved-fiber test walks its chord pieces
 # Fitted on llvmpipe, 2 cores, Mesa 22.3.6, to timed 320x180 renders of 11 looks (default, brute, fast,
 # 64 rings, curl, twist, ellipsoid, 3x3 supersampling, traced shadows, 2,000 guides, 16 bent segments):
 # loop passes per second in the traversal, and the fixed cost of a covered fragment (proxy, shading).
@@ -152,7 +152,7 @@ def _fragments(p: Params, scene, size: tuple[int, int]) -> float:
 
 
 def _tests_per_ray(p: Params, scene, mode: str) -> tuple[float, int]:
-    lay = reference.ring_layout(p)
+    lay = ring_layout(p)
     shaped = p["shape.ellipsoid"] > 0 or p["shape.curl_amplitude"] > 0 or p["shape.twist"] != 0
     passes = CURVED_TEST_PASSES if shaped else 1
     if mode == "brute":

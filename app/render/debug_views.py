@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..reference import lowbias32
+from ..fibers import lowbias32
 
 # A perceptually ordered ramp (dark blue -> teal -> yellow -> red), sampled at 6 stops.
 _HEAT = np.array([[0.05, 0.03, 0.25], [0.1, 0.3, 0.6], [0.1, 0.6, 0.6], [0.5, 0.8, 0.3],

@@ -3,8 +3,8 @@
 The virtual renderer stores containers only and ray casts the fibers per pixel. This module is the other
 side of that trade, kept apart from it (the scene never holds per-fiber data; this renderer does). It draws
 *the same fibers*: the placement comes from the same ring layout and the same hash as the shader
-(``reference.ring_layout``; ``fiber_key``/``key_random`` are the GLSL's factored hash, checked against
-``reference.all_fibers``), mapped through the same container segments.
+(``app.fibers``: ``ring_layout``, and ``fiber_key``/``key_random``, the GLSL's factored hash; checked against
+``reference.all_fibers`` by the tests), mapped through the same container segments.
 
 Geometry, in words. Inside a container segment a virtual fiber is the vertical line (cx, cy) of unit space,
 so in the segment's local frame it is P(z) = p0 + w(z) (cx ex + cy ey) + z ez with w(z) = r0 + kappa z: a
@@ -41,13 +41,14 @@ from dataclasses import dataclass
 import moderngl
 import numpy as np
 
-from .. import reference
+from .. import fibers
+from ..fibers import MAX_RINGS, fiber_key, key_random
 from ..gl.shaders import ProgramCache
 from ..params import Params
 from ..units import human_bytes
 from ..scene.containers import SEGMENT_BYTES, Scene
 from .camera import Camera
-from .renderer import MAX_RINGS, Frame, clear_targets, light_direction, release_framebuffers
+from .renderer import Frame, clear_targets, light_direction, release_framebuffers
 
 DEFAULT_BUDGET_BYTES = 1 << 30     # 1 GiB of fiber buffers; on llvmpipe "GPU" memory is system memory
 INSTANCE_BYTES = 12                # per (segment, fiber): half4(d.xyz, t0), half t1, uint16 tint | rough
@@ -107,7 +108,7 @@ class Plan:
 
 def plan(scene: Scene, p: Params) -> Plan:
     guides = len(np.unique(scene.segments[:, 19])) if scene.n_segments else 0
-    return Plan(scene.n_segments, guides, reference.ring_layout(p).fibers_per_container)
+    return Plan(scene.n_segments, guides, fibers.ring_layout(p).fibers_per_container)
 
 
 def estimate_bytes(scene: Scene, p: Params) -> int:
@@ -118,28 +119,11 @@ def estimate_bytes(scene: Scene, p: Params) -> int:
 # --------------------------------------------------------------------------------------------------
 # Fiber generation in numpy
 # --------------------------------------------------------------------------------------------------
-def fiber_key(seed: int, guide, ring, fiber) -> np.ndarray:
-    """The GLSL ``fiber_key`` (glsl/common/hash.glsl): hash of (seed, guide, ring, fiber), once per fiber.
-
-    ``reference.fiber_random(seed, g, r, f, ch)`` equals ``key_random(fiber_key(seed, g, r, f), ch)``; the
-    factored form hashes four rounds per fiber and one per channel instead of five per channel.
-    """
-    lb = reference.lowbias32
-    with np.errstate(over="ignore"):
-        h = lb(np.uint32(seed) + np.uint32(0x9E3779B9))
-    h = lb(h ^ np.asarray(guide, np.uint32))
-    h = lb(h ^ np.asarray(ring, np.uint32))
-    return lb(h ^ np.asarray(fiber, np.uint32))
-
-
-def key_random(key: np.ndarray, channel: int) -> np.ndarray:
-    return (reference.lowbias32(key ^ np.uint32(channel)) >> np.uint32(8)).astype(np.float64) / 16777216.0
-
-
-def fiber_centers(lay: reference.RingLayout, guides: np.ndarray):
+def fiber_centers(lay: fibers.RingLayout, guides: np.ndarray):
     """Unit-space centres and shading randoms of every fiber of ``guides`` (G,): arrays (G, F).
 
-    Returns (cx, cy, v_end, tint, rough); equal to ``reference.fiber_center`` fiber by fiber.
+    Returns (cx, cy, v_end, tint, rough); equal to ``fibers.fiber_center`` fiber by fiber. The key is
+    hashed once per fiber (``fiber_key``), each channel one round more, rather than five rounds a channel.
     """
     F = lay.fibers_per_container
     ring = np.repeat(np.arange(lay.rings), lay.n)
@@ -147,16 +131,15 @@ def fiber_centers(lay: reference.RingLayout, guides: np.ndarray):
     key = fiber_key(lay.seed, np.asarray(guides, np.uint32)[:, None], ring[None], j[None])
     if lay.thesis_hash:
         slot_deg = np.degrees(lay.rot[ring] + j * lay.dphi[ring])
-        ur, ua, ul = (np.broadcast_to(reference.thesis_random(slot_deg, ring, ch), key.shape)
-                      for ch in (reference.CH_RADIAL, reference.CH_ANGULAR, reference.CH_LENGTH))
+        ur, ua, ul = (np.broadcast_to(fibers.thesis_random(slot_deg, ring, ch), key.shape)
+                      for ch in (fibers.CH_RADIAL, fibers.CH_ANGULAR, fibers.CH_LENGTH))
     else:
-        ur, ua, ul = (key_random(key, ch) for ch in (reference.CH_RADIAL, reference.CH_ANGULAR,
-                                                       reference.CH_LENGTH))
+        ur, ua, ul = fibers.key_randoms(key)
     radius = lay.rho[ring] + (2.0 * ur - 1.0) * lay.max_dr[ring]
     angle = lay.rot[ring] + j * lay.dphi[ring] + (2.0 * ua - 1.0) * lay.max_dphi[ring]
     v_end = 1.0 - lay.length_jitter * ul
-    tint = key_random(key, reference.CH_TINT)
-    rough = key_random(key, reference.CH_ROUGH)
+    tint = key_random(key, fibers.CH_TINT)
+    rough = key_random(key, fibers.CH_ROUGH)
     return radius * np.cos(angle), radius * np.sin(angle), v_end, tint, rough
 
 
@@ -205,7 +188,7 @@ def _plane_z(fr: _Frames, cx: np.ndarray, cy: np.ndarray, n: np.ndarray, on_tip:
     return np.where(np.isfinite(z), z, h if on_tip else 0.0)
 
 
-def segment_fibers(scene: Scene, lay: reference.RingLayout, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def segment_fibers(scene: Scene, lay: fibers.RingLayout, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Every fiber of the segment rows ``rows`` (R,): the (R*F, 6) uint16 instance records (half d.xyz,
     half t0, half t1, tint | rough << 8) and (R, F) t1 - t0 (0 where the fiber is absent)."""
     fr = _Frames.of(scene.segments[rows])
@@ -281,7 +264,7 @@ class ExplicitRenderer:
             raise ExplicitBudgetError(pl.gpu_bytes, MAX_INSTANCES * INSTANCE_BYTES, pl.fibers,
                                       pl.bytes_per_fiber)
         self.release()
-        lay = reference.ring_layout(p)
+        lay = fibers.ring_layout(p)
         self.scene, self.plan, self._key = scene, pl, _geometry_key(p)
         rows = scene.segments if pl.rows else np.zeros((1, scene.segments.shape[1]), np.float32)
         self._rows = self.ctx.buffer(np.ascontiguousarray(rows, np.float32).tobytes())
@@ -371,7 +354,7 @@ class ExplicitRenderer:
         return self._targets[size]
 
     def _set_uniforms(self, prog: moderngl.Program, p: Params, cam: Camera, size, offset) -> None:
-        lay = reference.ring_layout(p)
+        lay = fibers.ring_layout(p)
         ring_first = np.zeros(MAX_RINGS, np.int32)
         ring_first[:lay.rings] = lay.first
         w, h = size

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import moderngl
 import numpy as np
 
-from .. import reference
+from .. import fibers
 from . import look
 from ..gl.shaders import ProgramCache
 from ..params import ParamError, Params
@@ -35,22 +35,21 @@ from ..scene.containers import Scene
 from .bvh import ContainerBvh, build_bvh, bvh_nbytes
 from .camera import Camera
 
-MAX_RINGS = 64
+MAX_RINGS = fibers.MAX_RINGS
 # llvmpipe ends all loops of a fragment shader silently once they have made this many passes through loop
 # headers in all; a loop's final, failing test is a pass too, so a loop of n iterations costs n + 1. The
 # count is kept per SIMD batch of fragments, not per fragment: where lanes take different branches, the
 # batch runs the loops of every branch taken, and a loop as often as its longest lane needs.
 LOOP_CAP = 65_535
 BRUTE_CHUNK = 60_000              # fibers per brute-force draw: stays under LOOP_CAP with 64 rings
-MAX_SUB = 16                      # chord pieces per arc of a curved-fiber ring (glsl/fibers/curved.glsl)
+MAX_SUB = fibers.MAX_SUB          # chord pieces per arc of a curved-fiber ring (glsl/fibers/curved.glsl)
 # A ray visits a ring of curved fibers on one or two of three arcs (the first arc, then the second half or
 # the back: glsl/fibers/shaped.glsl), so a batch whose lanes differ may visit it on all three; brute force
 # tests every fiber of its chunk on each of up to MAX_SUB chord pieces of an arc, one pass of the candidate
 # loop each plus each piece's final test. 16 passes per ring pay for the band, arc, piece and canary loops
 # (the chunk is the one the old per-fiber chord loop used, which leaves the piece loops ample room).
 BRUTE_CHUNK_SHAPED = (LOOP_CAP - 16 * MAX_RINGS) // (4 * (MAX_SUB + 2))
-TWIST_PATTERNS = {"uniform": 0, "ramped": 1, "alternating": 2}
-CURL_PATTERNS = {"helix": 0, "wave": 1}
+TWIST_PATTERNS, CURL_PATTERNS = fibers.TWIST_PATTERNS, fibers.CURL_PATTERNS
 SHADING_MODELS = {"kajiya_kay": 0, "marschner": 1}
 SHADOW_MODES = {"off": 0, "density": 1, "traced": 2}
 # standard MSAA sample positions (pixel units about the centre), as GL implementations place them
@@ -232,7 +231,7 @@ class Renderer:
         return self.programs.get(self.ctx, "stages/fullscreen_depth.vert", f"stages/{stage}.frag", defines)
 
     def _set_uniforms(self, prog: moderngl.Program, p: Params, cam: Camera, size, offset) -> None:
-        lay = reference.ring_layout(p)
+        lay = fibers.ring_layout(p)
         K = lay.rings
         w, h = size
         right, up, forward = cam.basis()
@@ -575,7 +574,7 @@ class Renderer:
 EPS_ANGLE = 2e-5                        # glsl/common/epsilon.glsl
 
 
-def ring_uniforms(lay: reference.RingLayout) -> dict[str, np.ndarray]:
+def ring_uniforms(lay: fibers.RingLayout) -> dict[str, np.ndarray]:
     """The per-ring uniform arrays of glsl/fibers/layout.glsl, padded to MAX_RINGS. Besides the layout,
     uRingB carries what the traversal would otherwise divide for per arc: 1 / dphi, and how many
     candidates past an improvement can still be nearer (2 reaches, traverse.glsl)."""
@@ -608,7 +607,7 @@ def candidate_caps(p: Params, scene: Scene) -> tuple[np.ndarray, int]:
     seen from the axis it sweeps at most acos(inner / outer). The window adds the ring's reach on either
     side. Curved fibers: per ring the loop passes of one arc, all its chord pieces included, and 1
     (``_shaped_arc_passes``)."""
-    lay = reference.ring_layout(p)
+    lay = fibers.ring_layout(p)
     eps_angle = EPS_ANGLE
     K = lay.rings
     if not is_shaped(p):
@@ -632,8 +631,8 @@ def _shaped_arc_passes(p: Params, scene: Scene) -> np.ndarray:
     the segment, and each piece adds its two reaches. A piece turns at most sqrt(0.8 r_f / r) with the
     twist (the chord rule, curved.glsl), or a MAX_SUB-th of the segment's twist where the rule is capped;
     a chord that sweeps more than 2.5 radians takes every fiber of the ring."""
-    lay = reference.ring_layout(p)
-    sh = reference.Shape.from_params(p)
+    lay = fibers.ring_layout(p)
+    sh = fibers.Shape.from_params(p)
     seg = scene.segments.astype(np.float64)
     axis = seg[:, 4:7] - seg[:, 0:3]
     h = np.linalg.norm(axis, axis=1)
@@ -647,14 +646,14 @@ def _shaped_arc_passes(p: Params, scene: Scene) -> np.ndarray:
     z_lo, z_hi = -r_bound * slope(seg[:, 8:11]), h + r_bound * slope(seg[:, 12:15])
     v_lo = seg[:, 11] + (seg[:, 15] - seg[:, 11]) * z_lo / h   # the guide parameter over the slab
     v_hi = seg[:, 11] + (seg[:, 15] - seg[:, 11]) * z_hi / h
-    e_lo = float(np.min(np.minimum(reference.shape_scale(sh, v_lo), reference.shape_scale(sh, v_hi))))
+    e_lo = float(np.min(np.minimum(fibers.shape_scale(sh, v_lo), fibers.shape_scale(sh, v_hi))))
     grow = lay.fiber_radius + sh.curl_amplitude + 1e-6      # shaped.glsl: ring_band
     inner = np.maximum(0.0, e_lo * (lay.rho - lay.max_dr) - grow)
     outer = (lay.rho + lay.max_dr) + grow                   # e_hi <= 1
     closest = np.minimum.accumulate(inner)              # no ring deeper than the ray's closest approach
     sweep = np.arccos(np.clip(closest / outer, 0.0, 1.0)) + 1e-3
-    dv = np.abs(v_hi - v_lo) * (2.0 * np.maximum(np.abs(v_lo), np.abs(v_hi)) if sh.twist_pattern == 1
-                                else 1.0)
+    ramped = sh.twist_pattern == fibers.TWIST_RAMPED
+    dv = np.abs(v_hi - v_lo) * (2.0 * np.maximum(np.abs(v_lo), np.abs(v_hi)) if ramped else 1.0)
     twist = 2.0 * math.pi * abs(sh.twist) * float(dv.max()) * 1.001
     r_chord = lay.rho + lay.max_dr + lay.fiber_radius + sh.curl_amplitude   # curved.glsl: chord_pieces
     piece_turn = np.minimum(twist, np.maximum(np.sqrt(0.8 * max(lay.fiber_radius, 1e-30) / r_chord) * 1.001,
@@ -708,7 +707,7 @@ def draw_ranges(p: Params, scene: Scene, mode: str, rays: int = 1, walks: int = 
     (curved: the arcs) in ring order (uRingOrder), which the renderer sets whenever there is more than one
     draw or ``needs_ring_order``. ``rays``: traversals per invocation; ``walks``: walks through the
     container hierarchy per invocation (the walk strategy)."""
-    lay = reference.ring_layout(p)
+    lay = fibers.ring_layout(p)
     total = lay.fibers_per_container
     if mode == "brute":
         # loop passes per fiber: one (straight), up to four arcs of a chord loop each (curved)
@@ -754,7 +753,7 @@ def draw_ranges(p: Params, scene: Scene, mode: str, rays: int = 1, walks: int = 
 
 def model_defines(p: Params, mode: str, cost: bool) -> dict[str, int]:
     """The defines of the fiber model and the traversal, the same for either visibility strategy."""
-    return {"TRAVERSAL": MODES[mode], "MAX_RINGS": MAX_RINGS, "MAX_SUB": MAX_SUB,
+    return {"TRAVERSAL": MODES[mode], "MAX_RINGS": fibers.MAX_RINGS, "MAX_SUB": fibers.MAX_SUB,
             "HASH_THESIS": int(p["fibers.hash"] == "thesis"), "COST_PASS": int(cost),
             "SHAPED": int(is_shaped(p)), "SHAPE_CURL": shape_curl_define(p),
             "SHAPE_ELLIPSOID": int(p["shape.ellipsoid"] > 0), "SHAPE_TWIST": int(p["shape.twist"] != 0),

@@ -78,14 +78,14 @@ def gpu_bytes(scene: Scene, p: Params) -> dict[str, tuple[int, str]]:
     polyline through its guide's joints, the plainest explicit store (no tangents, widths or colours, so a
     real one is larger still).
     """
-    from .. import reference
+    from ..fibers import fiber_count
 
     try:
         from ..render.renderer import scene_gpu_bytes
         virtual = (scene_gpu_bytes(scene), "container segments + their hierarchy + proxy rectangle (Renderer.set_scene)")
     except ImportError:
         virtual = (scene.nbytes, "container segments")
-    _, fibers = reference.fiber_count(p, scene.n_guides)
+    _, fibers = fiber_count(p, scene.n_guides)
     joints = scene.n_segments // max(scene.n_guides, 1) + 1     # vertices per fiber polyline
     out = {"virtual": virtual,
            "polylines": (fibers * joints * POLYLINE_VERTEX_BYTES,
@@ -107,7 +107,7 @@ def _count(d: dict[str, int]) -> str:
 
 def source_info(scene: Scene, p: Params) -> list[str]:
     """Lines for ``vfiber info``: the file, what was kept, orientation, guides, fibers and bytes."""
-    from .. import reference
+    from ..fibers import fiber_count, ring_layout
 
     s: GroomSource = scene.source
     lo, hi = s.bbox
@@ -138,8 +138,8 @@ def source_info(scene: Scene, p: Params) -> list[str]:
     else:
         fit = f"95% of strands stay within {s.chord_p95:.2f} container radii of their guide's axis"
     lines.append(f"{'guide fit':<{_W}}{fit}; sharpest joint {s.max_turn:.0f} degrees")
-    _, fibers = reference.fiber_count(p, scene.n_guides)
-    per_container = reference.ring_layout(p).fibers_per_container
+    _, fibers = fiber_count(p, scene.n_guides)
+    per_container = ring_layout(p).fibers_per_container
     lines.append(f"{'fibers rendered':<{_W}}{fibers:,} = {scene.n_guides:,} guides x {per_container:,} per "
                  f"container: {fibers / max(s.strands, 1):,.1f} fibers per file strand")
     sizes = gpu_bytes(scene, p)

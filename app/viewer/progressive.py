@@ -23,7 +23,7 @@ import statistics
 import time
 from typing import Any
 
-from .. import reference
+from ..fibers import fiber_count, ring_layout
 from ..gl.shaders import ShaderError
 from ..params import ParamError
 from ..render import budget
@@ -65,8 +65,8 @@ class Progressive:
         s, scene = self.state, self.scene
         if scene is None:
             return
-        f41, exact = reference.fiber_count(s.params, scene.n_guides)
-        per_container = reference.ring_layout(s.params).fibers_per_container
+        f41, exact = fiber_count(s.params, scene.n_guides)
+        per_container = ring_layout(s.params).fibers_per_container
         s.stats.fibers_41, s.stats.fibers_exact = f41, exact
         s.stats.explicit_bytes = explicit_bytes(per_container, scene.n_segments)
 

@@ -1,0 +1,37 @@
+"""The fiber model, owned once: where virtual fibers sit, their random numbers, their shape, its limits.
+
+Every twin takes its numbers from here: the GLSL (glsl/fibers/layout.glsl, glsl/common/hash.glsl,
+glsl/fibers/shape.glsl) through the defines of ``defines.py`` and the uniforms the renderer fills from
+``ring_layout``; the OSL export (osl/) through the same defines; the explicit baseline
+(app/render/explicit.py), which stores the same fibers; and the float64 reference (app/reference.py), which
+judges the shader and imports the model from here. The renderer imports the model, never the reference.
+docs/architecture.md lists every GLSL function of the model with its numpy and OSL twins.
+
+Modules: ``layout`` (rings, fiber counts, placement), ``hash`` (lowbias32, fiber keys and randoms,
+channels), ``shape`` (Shape, twist and curl codes), ``limits`` (MAX_RINGS, MAX_SUB), ``defines`` (all of
+these as GLSL/OSL defines).
+"""
+
+from __future__ import annotations
+
+from .defines import glsl_defines, osl_defines, osl_header
+from .hash import (CH_ANGULAR, CH_CURL, CH_LENGTH, CH_RADIAL, CH_RING, CH_ROUGH, CH_TINT, CHANNELS, SEED_OFFSET,
+                   THESIS_LCG, fiber_hash, fiber_key, fiber_random, key_random, key_randoms, lowbias32, ring_key,
+                   thesis_random)
+from .layout import (LAYOUT_KEYS, RingLayout, all_fibers, fiber_center, fiber_count, fiber_randoms, ring_layout,
+                     ring_step_deg)
+from .limits import MAX_RINGS, MAX_SUB
+from .shape import (CURL_HELIX, CURL_PATTERNS, CURL_WAVE, TWIST_ALTERNATING, TWIST_PATTERNS, TWIST_RAMPED,
+                    TWIST_UNIFORM, Shape, fiber_center_at, shape_scale, shape_twist)
+
+__all__ = [
+    "MAX_RINGS", "MAX_SUB",
+    "CHANNELS", "CH_RADIAL", "CH_ANGULAR", "CH_LENGTH", "CH_TINT", "CH_ROUGH", "CH_CURL", "CH_RING",
+    "SEED_OFFSET", "THESIS_LCG", "lowbias32", "ring_key", "fiber_key", "key_random", "key_randoms",
+    "fiber_hash", "fiber_random", "thesis_random",
+    "LAYOUT_KEYS", "RingLayout", "ring_layout", "ring_step_deg", "fiber_count", "fiber_randoms",
+    "fiber_center", "all_fibers",
+    "TWIST_PATTERNS", "CURL_PATTERNS", "TWIST_UNIFORM", "TWIST_RAMPED", "TWIST_ALTERNATING", "CURL_HELIX",
+    "CURL_WAVE", "Shape", "shape_twist", "shape_scale", "fiber_center_at",
+    "glsl_defines", "osl_defines", "osl_header",
+]
