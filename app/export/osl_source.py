@@ -10,6 +10,10 @@ of floats), no ``uint`` (hash.osl), no infinity arithmetic (``x / 0`` is 0), fun
 parameters (``VfParams``, and the per-ring numbers the GL gets as uniforms are computed by ``vf_ring``),
 and Cycles' fast-math ``asin``/``atan2`` need refining (trig.osl).
 
+The model's numbers (limits, random-number channels, shape codes) are not spelled in ``osl/``: they are
+``app.fibers``'s, and every expanded text starts with their ``#define`` lines (``DEFINES``,
+``app.fibers.osl_header``), as the GLSL gets them injected by the renderer.
+
 Includes are resolved here (``#include "fibers/layout.osl"``, relative to the ``osl/`` root, each file
 once; an include below a file's first code is inlined where it stands, as in the GLSL), so an exported
 shader is one self-contained text: a .blend embeds it as an internal text.
@@ -19,6 +23,7 @@ API
 
 ``osl_root() -> Path``                 the packaged ``app.osl`` (pyproject maps it to ``osl/``), else the checkout's
 ``expand(rel) -> str``                 ``osl/<rel>`` with its includes inlined (each file once)
+``DEFINES``                            the ``#define`` section of the model's numbers, first in every text
 ``LIBRARY``                            the library sections in include order (tuple of str; a file split by
                                        an inlined include is two), for probe shaders
 ``SHADER_BODY``                        the shader body (``osl/stages/container.osl``), after the parameter block
@@ -30,12 +35,16 @@ import importlib
 import re
 from pathlib import Path
 
-__all__ = ["osl_root", "expand", "library_files", "LIBRARY", "SHADER_BODY", "ENTRY", "STAGE"]
+from ..fibers import osl_header
+
+__all__ = ["osl_root", "expand", "library_files", "DEFINES", "LIBRARY", "SHADER_BODY", "ENTRY", "STAGE"]
 
 #: the files the shader needs, in an order that satisfies their includes
 ENTRY = ("fibers/traverse.osl", "stages/segment.osl", "shading/principled_hair.osl")
 STAGE = "stages/container.osl"
 _INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+\.osl)"\s*$')
+_DEFINES_REL = "<app.fibers>"       # the section that is no file: the model's numbers as defines
+DEFINES = f"// ==== app/fibers: the model's limits, channels and shape codes ====\n{osl_header()}"
 
 
 def osl_root() -> Path:
@@ -62,7 +71,7 @@ def _sections(entries) -> list[tuple[str, str]]:
     """(file, text) sections in the order the shader needs them, each file once. An include before a
     file's first line of code is a dependency, placed before the file; one further down is inlined where
     it stands, as the GLSL's is (traverse.osl includes shaped.osl after the types and helpers it uses)."""
-    sections: list[tuple[str, str]] = []
+    sections: list[tuple[str, str]] = [(_DEFINES_REL, DEFINES)]
     done: list[str] = []
 
     def visit(rel: str, stack: tuple[str, ...]) -> None:
@@ -102,7 +111,7 @@ def library_files(entries=ENTRY) -> list[str]:
     """The library files in the order they begin in the shader (dependencies first), each once."""
     order: list[str] = []
     for rel, _ in _sections(entries):
-        if rel not in order:
+        if rel not in order and rel != _DEFINES_REL:
             order.append(rel)
     return order
 

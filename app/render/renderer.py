@@ -753,7 +753,7 @@ def draw_ranges(p: Params, scene: Scene, mode: str, rays: int = 1, walks: int = 
 
 def model_defines(p: Params, mode: str, cost: bool) -> dict[str, int]:
     """The defines of the fiber model and the traversal, the same for either visibility strategy."""
-    return {"TRAVERSAL": MODES[mode], "MAX_RINGS": fibers.MAX_RINGS, "MAX_SUB": fibers.MAX_SUB,
+    return {**fibers.glsl_defines(), "TRAVERSAL": MODES[mode],
             "HASH_THESIS": int(p["fibers.hash"] == "thesis"), "COST_PASS": int(cost),
             "SHAPED": int(is_shaped(p)), "SHAPE_CURL": shape_curl_define(p),
             "SHAPE_ELLIPSOID": int(p["shape.ellipsoid"] > 0), "SHAPE_TWIST": int(p["shape.twist"] != 0),

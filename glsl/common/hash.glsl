@@ -7,14 +7,21 @@
 //   float thesis_random(float slotDeg, float ring, float channel)   fract(1207.523 * phi), thesis 3.4
 // fiber_random depends only on integers, so a fiber's numbers never change with the camera or with
 // float rounding; thesis_random is kept for fidelity to the thesis and measured against it.
-// Twin: app/reference.py (lowbias32, fiber_random, thesis_random).
+// Twin: app/fibers/hash.py (every function, same names); OSL: osl/common/hash.osl (vf_NAME).
+#ifndef COMMON_HASH_GLSL
+#define COMMON_HASH_GLSL
 
-const uint CH_RADIAL = 0u;
-const uint CH_ANGULAR = 1u;
-const uint CH_LENGTH = 2u;
-const uint CH_TINT = 3u;
-const uint CH_ROUGH = 4u;
-const uint CH_CURL = 5u;
+// The channels are app/fibers/hash.py's CHANNELS, injected as defines (app.fibers.glsl_defines). These
+// fallbacks only let the file compile alone (a test harness); tests/test_fibers_model.py holds them equal.
+#ifndef CH_RADIAL
+#define CH_RADIAL 0u
+#define CH_ANGULAR 1u
+#define CH_LENGTH 2u
+#define CH_TINT 3u
+#define CH_ROUGH 4u
+#define CH_CURL 5u
+#define CH_RING 6u
+#endif
 
 uint lowbias32(uint x) {
     x ^= x >> 16;
@@ -53,3 +60,5 @@ float fiber_random(uint seed, uint guide, uint ring, uint fiber, uint channel) {
 float thesis_random(float slotDeg, float ring, float channel) {
     return fract(1207.523 * (slotDeg + 0.37 * channel + 0.11 * ring));
 }
+
+#endif  // COMMON_HASH_GLSL

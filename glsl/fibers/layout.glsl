@@ -3,11 +3,16 @@
 // Ring i (0 = outermost) is the annulus [1 - (i+1)/K, 1 - i/K] of unit space. Its n_i fibers sit at angles
 // rot_i + j dphi_i, pushed by a radial and an angular offset that are bounded per ring so that a fiber
 // never leaves its slot; vEnd is where along the guide (0 root .. 1 tip) the fiber stops.
-// The per-ring numbers are computed once on the CPU (app/reference.py: ring_layout) and arrive here.
-// Twin: app/reference.py (fiber_center).
+// The per-ring numbers are computed once on the CPU (app/fibers/layout.py: ring_layout, in float64) and
+// arrive as uniforms (app/render/renderer.py: ring_uniforms).
+// Twin: app/fibers/layout.py (fiber_center); OSL: osl/fibers/layout.osl.
+#ifndef FIBERS_LAYOUT_GLSL
+#define FIBERS_LAYOUT_GLSL
 
 #include "common/hash.glsl"
 
+// MAX_RINGS is app/fibers/limits.py's, injected (app.fibers.glsl_defines); the fallback lets the file
+// compile alone, and tests/test_fibers_model.py holds it equal.
 #ifndef MAX_RINGS
 #define MAX_RINGS 64
 #endif
@@ -60,3 +65,5 @@ void fiber_center_keyed(vec4 A, vec4 B, uint ringKey, int ring, int j, out vec2 
 void fiber_center(uint guide, int ring, int j, out vec2 c, out float vEnd) {
     fiber_center_keyed(uRingA[ring], uRingB[ring], ring_key(uSeed, guide, ring), ring, j, c, vEnd);
 }
+
+#endif  // FIBERS_LAYOUT_GLSL

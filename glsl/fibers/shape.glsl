@@ -15,7 +15,8 @@
 //   c'(v) = E(v) rest + R(-tau(v)) curl(v)
 // whose angle about the axis stays within the curl's reach of the rest angle: a twisted fiber is straight
 // in it, and the ray, whose distance to the axis the rotation keeps, is the curve that turns.
-// Twin: app/reference.py (fiber_center_at, shape_twist, shape_scale, ring_point, ring_frame_center).
+// Twin: app/fibers/shape.py (fiber_center_at, shape_twist, shape_scale), app/reference.py (ring_point,
+// ring_frame_center). The pattern codes are app/fibers/shape.py's, injected (app.fibers.glsl_defines).
 
 uniform float uEllipsoid;
 uniform float uTwist;           // turns over the guide
@@ -26,6 +27,17 @@ uniform int uCurlPattern;
 
 const float TWO_PI = 6.28318530718;
 
+// fallbacks so that the file compiles alone; tests/test_fibers_model.py holds them equal to app.fibers
+#ifndef TWIST_UNIFORM
+#define TWIST_UNIFORM 0
+#define TWIST_RAMPED 1
+#define TWIST_ALTERNATING 2
+#endif
+#ifndef CURL_HELIX
+#define CURL_HELIX 0
+#define CURL_WAVE 1
+#endif
+
 #ifndef SHAPE_TWIST
 #define SHAPE_TWIST 1   // 0: built for twist 0 (ring_point skips the rotation)
 #endif
@@ -34,8 +46,8 @@ const float TWO_PI = 6.28318530718;
 #endif
 
 float shape_twist(float v, int ring) {
-    float t = uTwistPattern == 1 ? v * v : v;
-    float sgn = (uTwistPattern == 2 && (ring & 1) == 1) ? -1.0 : 1.0;
+    float t = uTwistPattern == TWIST_RAMPED ? v * v : v;
+    float sgn = (uTwistPattern == TWIST_ALTERNATING && (ring & 1) == 1) ? -1.0 : 1.0;
     return sgn * TWO_PI * uTwist * t;
 }
 
@@ -50,7 +62,7 @@ vec2 fiber_center_at(vec2 rest, float v, int ring, float curlPhase) {
     vec2 c = shape_scale(v) * vec2(ct * rest.x - st * rest.y, st * rest.x + ct * rest.y);
     if (uCurlAmplitude > 0.0) {
         float a = TWO_PI * (uCurlFrequency * v + curlPhase);
-        if (uCurlPattern == 0) {
+        if (uCurlPattern == CURL_HELIX) {
             c += uCurlAmplitude * vec2(cos(a), sin(a));
         } else {
             float len = length(c);
@@ -137,7 +149,7 @@ vec2 ring_frame_center(vec2 rest, CurlTurn curl, RingPoint P) {
 #elif SHAPE_CURL == 2
     c += uCurlAmplitude * wave;
 #else
-    c += uCurlAmplitude * (uCurlPattern == 0 ? curl.h : wave);
+    c += uCurlAmplitude * (uCurlPattern == CURL_HELIX ? curl.h : wave);
 #endif
 #endif
     return c;
