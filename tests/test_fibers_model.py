@@ -199,3 +199,18 @@ def test_glsl_hash_and_numbers_equal_the_model(ctx, injected):
     assert (B[:, 3].view(np.float32).astype(np.float64) == fibers.key_randoms(key)[2]).all()
     assert (B[:, 0] == fibers.MAX_RINGS).all() and (B[:, 1] == fibers.CH_RING).all()
     assert (B[:, 2] == fibers.TWIST_ALTERNATING * 16 + fibers.CURL_WAVE).all()
+
+
+def test_the_production_path_never_imports_the_reference():
+    """The judge stands beside the renderer: importing every face of the production path (renderer,
+    explicit baseline, CLI, viewer, export, groom info) loads app.fibers and never app.reference."""
+    import subprocess
+    import sys
+    code = ("import sys\n"
+            "import app.render.renderer, app.render.explicit, app.render.debug_views, app.render.budget\n"
+            "import app.cli, app.viewer.app, app.export.osl, app.export.osl_source, app.scene.groom_info\n"
+            "import app.scene.grooms, app.scene.generators\n"
+            "print('app.fibers' in sys.modules, 'app.reference' in sys.modules)\n")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["True", "False"], "a production module imports app.reference"

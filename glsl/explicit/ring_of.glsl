@@ -1,6 +1,6 @@
 // ring_of.glsl: which ring a fiber belongs to, from its index in the container's flat fiber numbering.
 //   int ring_of(int fiber)          binary search of uRingFirst (each ring's first fiber), O(log rings)
-// The numbering is the one of app/reference.py (RingLayout.first): ring 0 (outermost) first.
+// The numbering is the one of app/fibers/layout.py (RingLayout.first): ring 0 (outermost) first.
 
 #ifndef EXPLICIT_RING_OF_GLSL
 #define EXPLICIT_RING_OF_GLSL
