@@ -35,7 +35,7 @@ from pathlib import Path
 import moderngl
 import numpy as np
 
-from .. import reference
+from .. import reference          # the float64 judge; the model itself comes from app.fibers
 from ..fibers import (CH_ANGULAR, CH_LENGTH, CH_RADIAL, CH_TINT, all_fibers, fiber_randoms, ring_layout,
                      thesis_random)
 from ..params import SPEC, ParamError, Params, max_fiber_radius

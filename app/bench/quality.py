@@ -29,7 +29,7 @@ import numpy as np
 from PIL import Image
 from tqdm import tqdm
 
-from .. import reference
+from .. import reference          # the float64 judge; the model itself comes from app.fibers
 from ..fibers import CH_LENGTH, CH_RADIAL, ring_layout, thesis_random
 from ..gl.context import create_headless
 from ..params import Params

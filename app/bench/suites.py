@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from .. import reference
+from .. import reference          # the float64 judge; the model itself comes from app.fibers
 from ..fibers import ring_layout
 from ..params import Params
 from ..render.camera import Camera
