@@ -129,7 +129,7 @@ def build(p: Params, virtual_scene: Scene, *, max_instances: int = MAX_INSTANCES
     the offset constant."""
     if not 0.0 <= tip_taper <= 1.0:
         raise ValueError(f"strand reference: tip_taper = {tip_taper:g}; it must be in 0 .. 1")
-    from .. import reference
+    from ..fibers import ring_layout
     from ..scene.grooms import container_rows, load_groom, resample_many
 
     if p["scene.generator"] != "groom":
@@ -148,7 +148,7 @@ def build(p: Params, virtual_scene: Scene, *, max_instances: int = MAX_INSTANCES
     S = len(polylines)
     R = float(np.median(virtual_scene.segments[:, 3]))
     rows = container_rows(polylines, np.full(S, R), tip_taper, virtual_scene.origin).astype(np.float32)
-    F = reference.ring_layout(p).fibers_per_container
+    F = ring_layout(p).fibers_per_container
     virtual_fibers = F * virtual_scene.n_guides
     per_strand = max(1, round(virtual_fibers / S))
     children = int(min(per_strand, max(1, max_instances // max(1, len(rows)))))
