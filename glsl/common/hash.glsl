@@ -9,6 +9,9 @@
 // float rounding; thesis_random is kept for fidelity to the thesis and measured against it.
 // Twin: app/reference.py (lowbias32, fiber_random, thesis_random).
 
+#ifndef COMMON_HASH_GLSL
+#define COMMON_HASH_GLSL
+
 const uint CH_RADIAL = 0u;
 const uint CH_ANGULAR = 1u;
 const uint CH_LENGTH = 2u;
@@ -53,3 +56,5 @@ float fiber_random(uint seed, uint guide, uint ring, uint fiber, uint channel) {
 float thesis_random(float slotDeg, float ring, float channel) {
     return fract(1207.523 * (slotDeg + 0.37 * channel + 0.11 * ring));
 }
+
+#endif

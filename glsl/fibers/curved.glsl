@@ -16,7 +16,15 @@
 // fibers (dv/ds near 0) needs one piece, a ray along them up to MAX_SUB.
 // Twin: app/reference.py (chord_pieces, piece_entry).
 
+#include "common/epsilon.glsl"
+#include "geometry/intervals.glsl"
+#include "geometry/container.glsl"
+#include "fibers/layout.glsl"
+#include "fibers/fiber_entry.glsl"
 #include "fibers/shape.glsl"
+
+#ifndef FIBERS_CURVED_GLSL
+#define FIBERS_CURVED_GLSL
 
 #ifndef MAX_SUB
 #define MAX_SUB 16
@@ -69,3 +77,5 @@ float piece_entry(Segment seg, FiberRay fr, RingPoint P0, RingPoint P1, float in
     kind = sIn == P0.s + e.x ? 0 : (sIn == zs.x ? 1 : 2);
     return vEnd > seg.v0 && sIn <= sOut ? sIn : INF;
 }
+
+#endif

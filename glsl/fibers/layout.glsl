@@ -8,6 +8,9 @@
 
 #include "common/hash.glsl"
 
+#ifndef FIBERS_LAYOUT_GLSL
+#define FIBERS_LAYOUT_GLSL
+
 #ifndef MAX_RINGS
 #define MAX_RINGS 64
 #endif
@@ -60,3 +63,5 @@ void fiber_center_keyed(vec4 A, vec4 B, uint ringKey, int ring, int j, out vec2 
 void fiber_center(uint guide, int ring, int j, out vec2 c, out float vEnd) {
     fiber_center_keyed(uRingA[ring], uRingB[ring], ring_key(uSeed, guide, ring), ring, j, c, vEnd);
 }
+
+#endif

@@ -17,6 +17,11 @@
 // in it, and the ray, whose distance to the axis the rotation keeps, is the curve that turns.
 // Twin: app/reference.py (fiber_center_at, shape_twist, shape_scale, ring_point, ring_frame_center).
 
+#include "geometry/container.glsl"
+
+#ifndef FIBERS_SHAPE_GLSL
+#define FIBERS_SHAPE_GLSL
+
 uniform float uEllipsoid;
 uniform float uTwist;           // turns over the guide
 uniform int uTwistPattern;
@@ -142,3 +147,5 @@ vec2 ring_frame_center(vec2 rest, CurlTurn curl, RingPoint P) {
 #endif
     return c;
 }
+
+#endif

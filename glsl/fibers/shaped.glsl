@@ -21,7 +21,21 @@
 // with nothing to do gets no candidates (docs/performance.md).
 // Twin: app/reference.py (shaped_nearest_segment).
 
+#include "common/epsilon.glsl"
+#include "common/hash.glsl"
+#include "geometry/intervals.glsl"
+#include "geometry/container.glsl"
+#include "fibers/layout.glsl"
+#include "fibers/hit.glsl"
+#include "fibers/counters.glsl"
+#include "fibers/mode.glsl"
+#include "fibers/fiber_entry.glsl"
+#include "fibers/candidates.glsl"
+#include "fibers/shape.glsl"
 #include "fibers/curved.glsl"
+
+#ifndef FIBERS_SHAPED_GLSL
+#define FIBERS_SHAPED_GLSL
 
 #ifndef SHAPE_ELLIPSOID
 #define SHAPE_ELLIPSOID 1   // 0: built for ellipsoid 0 (the bands of the segment are the arc's)
@@ -217,3 +231,5 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
                - fiber_center_at(bestRest, v - 1e-3, ringHit, bestPhase)) / 2e-3;
     return best;
 }
+
+#endif

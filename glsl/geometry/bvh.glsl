@@ -15,8 +15,8 @@
 // Twin: app/render/bvh.py (segment_cylinders, segment_boxes, the layout); tests/render/test_bvh.py walks
 // the same tree in numpy.
 
-#ifndef BVH_GLSL
-#define BVH_GLSL
+#ifndef GEOMETRY_BVH_GLSL
+#define GEOMETRY_BVH_GLSL
 
 #include "common/epsilon.glsl"
 #include "geometry/container.glsl"

@@ -11,7 +11,11 @@
 // along a ray is kept while w > 0, so the nearest hit there is the nearest hit in the world.
 // Twin: app/reference.py (segment, to_unit_space, unit_to_world_t, z_cut_unit).
 
+#include "common/epsilon.glsl"
 #include "geometry/intervals.glsl"
+
+#ifndef GEOMETRY_CONTAINER_GLSL
+#define GEOMETRY_CONTAINER_GLSL
 
 struct Segment {
     vec3 p0;            // camera-relative
@@ -163,3 +167,5 @@ float z_cut_unit(Segment seg, float vEnd) {
     float z = (vEnd - seg.v0) / (seg.v1 - seg.v0) * seg.h;
     return z / (seg.r0 + seg.kappa * z);
 }
+
+#endif

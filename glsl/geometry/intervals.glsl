@@ -13,6 +13,10 @@
 // return becomes a masked block whose every assignment costs a blend.
 // The roots of a |d|^2 t^2 + 2 b t + |oc|^2 - r^2 = 0 for a ray o + t d about an axis, from a = |d|^2,
 // b = oc . d, len = |oc| and crs = |oc x d| (2D or 3D): the interval inside radius r.
+
+#ifndef GEOMETRY_INTERVALS_GLSL
+#define GEOMETRY_INTERVALS_GLSL
+
 vec2 radius_interval(float a, float b, float len, float crs, float r) {
     float cc = (len - r) * (len + r);
     float ra = sqrt(a) * r;
@@ -35,3 +39,5 @@ vec2 slab(float o, float d, float lo, float hi) {
     vec2 along = (o >= lo && o <= hi) ? vec2(-INF, INF) : vec2(INF, -INF);    // d == 0
     return d == 0.0 ? along : vec2(min(ta, tb), max(ta, tb));
 }
+
+#endif

@@ -4,8 +4,8 @@
 // SHADING_MODEL 0 Kajiya-Kay, 1 Marschner; SHADOW_MODE 0 off, 1 density estimate, 2 traced shadow ray
 // (the same traversal, any hit, inside the hit's container).
 
-#ifndef FIBER_SHADING_GLSL
-#define FIBER_SHADING_GLSL
+#ifndef SHADING_FIBER_SHADING_GLSL
+#define SHADING_FIBER_SHADING_GLSL
 
 #include "fibers/traverse.glsl"
 #include "shading/light.glsl"

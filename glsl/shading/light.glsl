@@ -14,6 +14,9 @@
 #include "shading/kajiya_kay.glsl"
 #include "shading/marschner.glsl"
 
+#ifndef SHADING_LIGHT_GLSL
+#define SHADING_LIGHT_GLSL
+
 #ifndef SHADING_MODEL
 #define SHADING_MODEL 0
 #endif
@@ -78,3 +81,5 @@ vec3 shade_lights(vec3 T, vec3 N, vec3 V, vec3 color, float roughness, float occ
     }
     return radiance;
 }
+
+#endif
