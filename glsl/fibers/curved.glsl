@@ -45,7 +45,7 @@ int chord_pieces(float L, float dv, float sa, int ring, float eLo) {
     float bendV = r * (rate * rate + rate2) + ell + curl;
     // L^2 |q''| without dividing by L
     float bendL = dv * dv * bendV + 2.0 * rate * dv * L * sa;
-    float n = ceil(sqrt(bendL / (0.8 * max(uFiberRadius, 1e-30))));
+    float n = ceil(sqrt(bendL / (0.8 * max(uFiberRadius, EPS_DIVISOR))));
     return int(clamp(n, 1.0, float(MAX_SUB)));
 }
 

@@ -55,7 +55,7 @@ Bands segment_bands(Segment seg) {
 
 vec2 ring_band(int i, Bands b) {
     float rho = uRingA[i].x, dr = uRingB[i].x;
-    float grow = uFiberRadius + uCurlAmplitude + 1e-6;
+    float grow = uFiberRadius + uCurlAmplitude + EPS_BAND;
     return vec2(max(0.0, b.eLo * (rho - dr) - grow), b.eHi * (rho + dr) + grow);
 }
 
@@ -175,10 +175,10 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
 #endif
             // the candidates: slots within the reach of the angles the piece sweeps (a chord never
             // sweeps half a turn or more: past 2.5 radians it passes so near the axis that all are taken)
-            float reach = shaped_reach(i, arcBands, chord_distance(P0.p, P1.p) * (1.0 - 1e-5));
+            float reach = shaped_reach(i, arcBands, chord_distance(P0.p, P1.p) * (1.0 - EPS_CHORD));
             // exact: a hit nearer than one on candidate t lies before it on the chord, so its fiber's slot
             // is at most two reaches further on (traverse_straight's rule, with the piece's reach)
-            int after = gMode == 1 ? int(floor(2.0 * reach * ringB.z * (1.0 + 1e-6))) + 1 : n;
+            int after = gMode == 1 ? int(floor(2.0 * reach * ringB.z * (1.0 + EPS_AFTER))) + 1 : n;
             vec2 pA = dot(P0.p, P0.p) > 0.0 ? P0.p : P1.p;
             vec2 pB = dot(P1.p, P1.p) > 0.0 ? P1.p : pA;
             float thA = atan(pA.y, pA.x);
@@ -227,8 +227,8 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
     float v = unit_to_v(seg, ur.O.z + (hit ? best.s : 0.0) * ur.D.z);
     int ringHit = max(best.ring, 0);
     best.c = fiber_center_at(bestRest, v, ringHit, bestPhase);
-    best.dcdv = (fiber_center_at(bestRest, v + 1e-3, ringHit, bestPhase)
-               - fiber_center_at(bestRest, v - 1e-3, ringHit, bestPhase)) / 2e-3;
+    best.dcdv = (fiber_center_at(bestRest, v + DCDV_STEP, ringHit, bestPhase)
+               - fiber_center_at(bestRest, v - DCDV_STEP, ringHit, bestPhase)) / (2.0 * DCDV_STEP);
     return best;
 }
 

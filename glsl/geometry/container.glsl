@@ -44,7 +44,7 @@ struct UnitRay {
 // How far a joint plane leans past the end point per unit of radius (tan of its tilt).
 float joint_slope(vec3 n) {
     float c = abs(n.z);
-    return sqrt(max(0.0, 1.0 - c * c)) / max(c, 1e-6);
+    return sqrt(max(0.0, 1.0 - c * c)) / max(c, EPS_JOINT_COS);
 }
 
 Segment make_segment(vec4 a, vec4 b, vec4 c, vec4 d, vec4 e) {

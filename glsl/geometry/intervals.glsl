@@ -6,6 +6,9 @@
 
 #include "common/epsilon.glsl"
 
+#ifndef GEOMETRY_INTERVALS_GLSL
+#define GEOMETRY_INTERVALS_GLSL
+
 // Stable roots (pbrt): q = -(b + sign(b) sqrt(disc)), t0 = q / a, t1 = c / q, with the discriminant
 // a r^2 - cross^2 factored as (sqrt(a) r - |cross|)(sqrt(a) r + |cross|) so it never cancels. A ray
 // parallel to the axis (a = 0) is inside for every t or for none.
@@ -13,10 +16,6 @@
 // return becomes a masked block whose every assignment costs a blend.
 // The roots of a |d|^2 t^2 + 2 b t + |oc|^2 - r^2 = 0 for a ray o + t d about an axis, from a = |d|^2,
 // b = oc . d, len = |oc| and crs = |oc x d| (2D or 3D): the interval inside radius r.
-
-#ifndef GEOMETRY_INTERVALS_GLSL
-#define GEOMETRY_INTERVALS_GLSL
-
 vec2 radius_interval(float a, float b, float len, float crs, float r) {
     float cc = (len - r) * (len + r);
     float ra = sqrt(a) * r;
