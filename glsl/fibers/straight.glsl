@@ -7,11 +7,9 @@
 // arc starts beyond the nearest hit so far: returns the nearest fiber.
 // llvmpipe runs both sides of every branch and every loop at least once per SIMD batch: the loop is
 // written without early returns or `continue` (docs/performance.md).
-// Its candidate loop is not shared with traverse_shaped's: the two bodies test different things (one
-// straight fiber on an arc, keeping the arc's best apart and merging it once per arc; one curved fiber
-// on a chord piece, with the piece's curl state, writing the best at once), so a shared body would make
-// every SIMD batch pay for both; what they do share is the candidate runs (candidates.glsl), the fiber
-// placement (layout.glsl) and the hit order (hit.glsl: beats).
+// Its candidate loop shares its rules with traverse_shaped's (candidates.glsl: candidate_run, candidate,
+// take_candidate); what stays here is the test itself, one straight fiber against the arc. A loop body
+// shared whole would need #if SHAPED around that test and its state, for no time saved.
 
 #include "common/epsilon.glsl"
 #include "geometry/container.glsl"
@@ -89,10 +87,7 @@ FiberHit traverse_straight(Segment seg, UnitRay ur) {
         int after = int(ringB.w);
         int end = open ? run0.y + run1.y : 0;
         uint ringKey = ring_key(uSeed, seg.guide, i);
-        int bestJ = -1;
-        float bestS = best.s;
-        vec2 bestC = vec2(0.0);
-        int bestKind = 0;
+        bool found = false;
         for (int t = 0; t < end; t++) {
             gIters++;
             gTests++;
@@ -102,24 +97,11 @@ FiberHit traverse_straight(Segment seg, UnitRay ur) {
             fiber_center_keyed(ring, ringB, ringKey, i, j, c, vEnd);
             int kind;
             float s = fiber_entry(seg, fr, c, vEnd, kind);
-            if (i == gSkipRing && j == gSkipFiber) s = INF;
-            // the best so far: this arc's, or the earlier arcs' (ties as brute force breaks them)
-            bool mine = bestJ >= 0;
-            bool better = beats(s, i, j, bestS, mine ? i : best.ring, mine ? bestJ : best.fiber);
-            bestS = better ? s : bestS;
-            bestJ = better ? j : bestJ;
-            bestC = better ? c : bestC;
-            bestKind = better ? kind : bestKind;
-            // fast: the first fiber found wins
-            end = !better ? end : (gMode == 0 ? t : min(end, t + 1 + after));
+            bool better = take_candidate(s, kind, i, j, t, after, best, end);
+            best.c = better ? c : best.c;
+            found = found || better;
         }
-        bool found = bestJ >= 0;
-        best.s = found ? bestS : best.s;
-        best.ring = found ? i : best.ring;
-        best.fiber = found ? bestJ : best.fiber;
-        best.c = found ? bestC : best.c;
-        best.kind = found ? bestKind : best.kind;
-        if (gMode == 0 && found) break;
+        if (gMode == 0 && found) break;                 // fast: the first fiber found wins
     }
     return best;
 }
