@@ -182,8 +182,8 @@ _OSL_MACRO = re.compile(r"^\s*#\s*define\s+(VF_\w+)", re.M)
 _OSL_USE = re.compile(r"\b(vf_\w+|Vf\w+|VF_\w+)\b")
 
 
-def _osl_code(rel: str) -> str:
-    text = (OSL / rel).read_text(encoding="utf-8")
+def _osl_code(rel: str, root: Path = OSL) -> str:
+    text = (root / rel).read_text(encoding="utf-8")
     code = re.sub(r"//[^\n]*", "", text)
     # attribute names ("vf_p0") are strings, not symbols; an include's path stays for _INCLUDE
     return re.sub(r'(?<!include )"[^"\n]*"', '""', code)
@@ -193,29 +193,39 @@ def _osl_defines(code: str) -> set[str]:
     return set(_OSL_DEF.findall(code)) | set(_OSL_STRUCT.findall(code)) | set(_OSL_MACRO.findall(code))
 
 
-def _osl_reach(rel: str, seen: set[str] | None = None) -> set[str]:
+def _osl_reach(rel: str, root: Path = OSL, seen: set[str] | None = None) -> set[str]:
+    """Every name defined in ``rel`` and in what it includes, directly or through them."""
     seen = set() if seen is None else seen
     if rel in seen:
         return set()
     seen.add(rel)
-    code = _osl_code(rel)
+    code = _osl_code(rel, root)
     names = _osl_defines(code)
     for inc in _INCLUDE.findall(code):
-        names |= _osl_reach(inc, seen)
+        names |= _osl_reach(inc, root, seen)
     return names
+
+
+def osl_missing(rel: str, root: Path = OSL) -> list[str]:
+    """The vf_ / Vf / VF_ names ``rel`` uses that neither it nor its includes define."""
+    code = _osl_code(rel, root)
+    for inc in _INCLUDE.findall(code):
+        assert (root / inc).is_file(), f"{root.name}/{rel} includes {inc}, which does not exist"
+    used = set(_OSL_USE.findall(code)) - {guard_name(rel)}
+    return sorted(used - _osl_reach(rel, root))
 
 
 @pytest.mark.parametrize("rel", OSL_LIBRARY)
 def test_every_osl_file_includes_what_it_uses(rel: str):
-    code = _osl_code(rel)
-    for inc in _INCLUDE.findall(code):
-        assert (OSL / inc).is_file(), f"osl/{rel} includes {inc}, which does not exist"
-    guard = guard_name(rel)
-    used = set(_OSL_USE.findall(code)) - {guard}
-    missing = sorted(used - _osl_reach(rel))
+    missing = osl_missing(rel)
     assert not missing, f"osl/{rel} uses {missing} without including the file that defines them"
 
 
-def test_the_osl_check_sees_a_missing_include():
-    code = _osl_code("fibers/curved.osl")
-    assert set(_OSL_USE.findall(code)) - _osl_defines(code), "curved.osl uses nothing from its includes?"
+def test_the_osl_check_sees_a_missing_include(tmp_path: Path):
+    _tree(tmp_path, {"a.osl": "#define VF_A 1\nstruct VfA { float x; };\nfloat vf_a(VfA v) { return v.x; }\n",
+                     "b.osl": '#include "a.osl"\nfloat vf_b(VfA v) { return vf_a(v) + VF_A; }\n',
+                     "c.osl": 'float vf_c(VfA v) { return vf_a(v); }  // "vf_d" in a string is no use\n',
+                     "d.osl": '#include "b.osl"\nfloat vf_d(VfA v) { string s = "vf_nothing"; return vf_b(v); }\n'})
+    assert osl_missing("b.osl", tmp_path) == []
+    assert osl_missing("c.osl", tmp_path) == ["VfA", "vf_a"]
+    assert osl_missing("d.osl", tmp_path) == []        # through b.osl; the string names nothing

@@ -1,7 +1,7 @@
 // counters.glsl: the work a traversal does, for the cost pass (renderer.py: cost outputs).
 //   void loop_canary()      after the traversal: raises gIters to LOOP_CAP if llvmpipe cut a loop short
 // Counters: gTests (fiber tests), gPieces (arcs visited), gIters (loop iterations, all loops). Every
-// traversal loop adds to them; only the cost pass writes them out, so elsewhere the compiler drops them.
+// traversal loop adds to them; only the cost pass writes them out (stages/*.frag: COST_PASS).
 
 #include "fibers/layout.glsl"
 

@@ -8,8 +8,8 @@
 // llvmpipe runs both sides of every branch and every loop at least once per SIMD batch: the loop is
 // written without early returns or `continue` (docs/performance.md).
 // Its candidate loop shares its rules with traverse_shaped's (candidates.glsl: candidate_run, candidate,
-// take_candidate); what stays here is the test itself, one straight fiber against the arc. A loop body
-// shared whole would need #if SHAPED around that test and its state, for no time saved.
+// take_candidate); what stays here is the test itself, one straight fiber against the arc (a loop body
+// shared whole would need #if SHAPED around that test and the state each keeps for its hit).
 
 #include "common/epsilon.glsl"
 #include "geometry/container.glsl"
