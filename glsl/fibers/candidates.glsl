@@ -3,14 +3,10 @@
 //   ivec2 candidate_run(int r, int j0, int dir, int count, int n, ivec2 share)
 //   int   candidate(ivec2 run0, ivec2 run1, int dir, int t)     the t-th candidate of the two runs
 //   float wrap_pi(float a)                     an angle into [-pi, pi)
-//   bool  take_candidate(float s, int kind, int i, int j, int t, int after, inout FiberHit best, inout int end)
 // Only fibers whose slot angle lies within the arc's angles widened by the ring's reach can be hit; those
 // slots are consecutive fiber indices mod n, taken in the order the ray meets them.
 
-#include "common/epsilon.glsl"
 #include "fibers/layout.glsl"
-#include "fibers/hit.glsl"
-#include "fibers/mode.glsl"
 
 #ifndef FIBERS_CANDIDATES_GLSL
 #define FIBERS_CANDIDATES_GLSL
@@ -43,22 +39,6 @@ ivec2 candidate_run(int r, int j0, int dir, int count, int n, ivec2 share) {
 // split differently still cost the batch only the longest lane (llvmpipe's loop budget is per batch).
 int candidate(ivec2 run0, ivec2 run1, int dir, int t) {
     return t < run0.y ? run0.x + dir * t : run1.x + dir * (t - run0.y);
-}
-
-// The rules of a scan over an arc's (or a chord piece's) candidates, shared by traverse_straight and
-// traverse_shaped: candidate t, fiber j of ring i, was entered at s (INF: missed) through `kind`. It
-// becomes the best hit if it beats it (hit.glsl: the tie order of brute force), unless a shadow ray
-// starts on it; then fast mode ends the scan at once and exact mode scans `after` candidates more (a
-// nearer fiber's slot lies at most two reaches further on). Returns whether it became the best.
-bool take_candidate(float s, int kind, int i, int j, int t, int after, inout FiberHit best, inout int end) {
-    s = i == gSkipRing && j == gSkipFiber ? INF : s;
-    bool better = beats(s, i, j, best.s, best.ring, best.fiber);
-    best.s = better ? s : best.s;
-    best.ring = better ? i : best.ring;
-    best.fiber = better ? j : best.fiber;
-    best.kind = better ? kind : best.kind;
-    end = !better ? end : (gMode == 0 ? t : min(end, t + 1 + after));
-    return better;
 }
 
 #endif

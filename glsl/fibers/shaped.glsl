@@ -194,6 +194,8 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
             ivec2 run0 = candidate_run(0, j0, dir, count, n, share);
             ivec2 run1 = candidate_run(1, j0, dir, count, n, share);
             int end = run0.y + run1.y;
+            // the scan's rules (skip, tie order, fast/exact stop) as traverse_straight's: straight.glsl
+            // says why the two loops are apart; change both together
             for (int t = 0; t < end; t++) {
                 gIters++;
                 gTests++;
@@ -204,10 +206,16 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
                 float phase = shaped_curl_phase(ringKey, i, j);
                 int kind;
                 float s = piece_entry(seg, fr, P0, P1, invLen, curlStep, rest, phase, vEnd, kind);
-                bool better = take_candidate(s, kind, i, j, t, after, best, end);
+                s = i == gSkipRing && j == gSkipFiber ? INF : s;
+                bool better = beats(s, i, j, best.s, best.ring, best.fiber);
+                best.s = better ? s : best.s;
+                best.ring = better ? i : best.ring;
+                best.fiber = better ? j : best.fiber;
+                best.kind = better ? kind : best.kind;
                 bestRest = better ? rest : bestRest;
                 bestPhase = better ? phase : bestPhase;
                 found = found || better;
+                end = !better ? end : (gMode == 0 ? t : min(end, t + 1 + after));   // fast: the first wins
             }
             // exact: no later piece can start before the nearest hit; fast: stop at the first
             bool stop = gMode == 0 ? found : (gMode == 1 && P1.s >= best.s);

@@ -11,8 +11,7 @@
 // The parts, one concept a file: hit.glsl (the best hit and the tie order), mode.glsl (mode and this
 // draw's share of the fibers), counters.glsl (the cost counters and the loop canary), fiber_entry.glsl
 // (one ray against one fiber), ray_path.glsl (the ray's arcs across the rings), candidates.glsl (the
-// fibers an arc can hit, and the rules of a scan over them), straight.glsl (the per-ring fiber loop for
-// straight fibers).
+// fibers an arc can hit), straight.glsl (the per-ring fiber loop for straight fibers).
 
 #include "common/epsilon.glsl"
 #include "geometry/container.glsl"
