@@ -102,10 +102,25 @@ def test_shader_source_is_a_port_without_trace():
         assert glsl in src, f"the port does not name its twin {glsl}"
 
 
-def test_an_include_below_code_is_inlined_where_it_stands():
-    """traverse.osl includes shaped.osl mid-file, as traverse.glsl does shaped.glsl: the shaped traversal
-    comes after the fiber ray and candidate runs it uses and before the dispatch that calls it; each file
-    once, its top includes first."""
+def test_an_include_below_code_is_inlined_where_it_stands(tmp_path, monkeypatch):
+    """An include before a file's first code is a dependency, placed before it; one further down is
+    inlined where it stands (its text after the code above it and before the code below), each file
+    once. (osl/ itself has no mid-file include since its files became self-contained: a small tree.)"""
+    for rel, text in {"a.osl": "// a\nvoid vf_a() {}\n",
+                      "b.osl": '// b\n#include "a.osl"\nvoid vf_b() {}\n#include "c.osl"\nvoid vf_b2() {}\n',
+                      "c.osl": '#include "a.osl"\nvoid vf_c() {}\n'}.items():
+        (tmp_path / rel).write_text(text)
+    monkeypatch.setattr(osl_source, "osl_root", lambda: tmp_path)
+    src = osl_source.expand("b.osl")
+    at = {name: src.index(name + "(") for name in ("vf_a", "vf_b", "vf_c", "vf_b2")}
+    assert at["vf_a"] < at["vf_b"] < at["vf_c"] < at["vf_b2"]
+    assert src.count("void vf_a(") == 1
+    assert src.count("// ==== osl/b.osl ====") == 1 and src.count("// ==== osl/b.osl (continued) ====") == 1
+    assert not re.search(r'^\s*#\s*include', src, re.M)
+
+
+def test_the_traversal_comes_after_what_it_uses():
+    """osl/fibers/traverse.osl expanded: every file once, dependencies first."""
     src = osl_source.expand("fibers/traverse.osl")
     at = {name: src.index(name + "(") for name in ("void vf_ring", "void vf_fiber_ray", "void vf_candidate_run",
                                                   "void vf_traverse_shaped", "void vf_traverse_fibers")}
@@ -113,7 +128,6 @@ def test_an_include_below_code_is_inlined_where_it_stands():
             < at["void vf_traverse_shaped"] < at["void vf_traverse_fibers"])
     assert src.count("// ==== osl/fibers/shape.osl ====") == 1
     assert src.count("// ==== osl/fibers/traverse.osl ====") == 1
-    assert src.count("// ==== osl/fibers/traverse.osl (continued) ====") == 1
     assert not re.search(r'^\s*#\s*include', src, re.M)
 
 

@@ -82,7 +82,10 @@ def test_excuses_name_real_functions():
 
 def test_the_checker_sees_functions():
     """The parser itself: it finds the known functions (a regex that matched nothing would pass all)."""
-    assert {"traverse_straight", "ray_path", "candidate_run", "fiber_entry"} <= glsl_functions(
-        GLSL / "fibers/traverse.glsl")
-    assert {"vf_traverse_straight", "vf_ray_path"} <= osl_functions(OSL / "fibers/traverse.osl")
+    assert {"traverse_straight"} <= glsl_functions(GLSL / "fibers/straight.glsl")
+    assert {"ray_path", "deepest_ring"} <= glsl_functions(GLSL / "fibers/ray_path.glsl")
+    assert {"candidate_run", "candidate"} <= glsl_functions(GLSL / "fibers/candidates.glsl")
+    assert {"fiber_entry"} <= glsl_functions(GLSL / "fibers/fiber_entry.glsl")
+    assert {"vf_traverse_straight"} <= osl_functions(OSL / "fibers/straight.osl")
+    assert {"vf_ray_path"} <= osl_functions(OSL / "fibers/ray_path.osl")
     assert "make_segment" in glsl_functions(GLSL / "geometry/container.glsl")

@@ -2,8 +2,12 @@
 
 Include paths are relative to the glsl root, never to the including file, so a library file has one
 name everywhere (``#include "geometry/container.glsl"``) and include-once is a set of those names.
-A file is expanded at its first include; later includes of it become blank lines. Directives inside
-block comments are still seen: keep ``#include`` out of comments.
+A file is expanded at its first include; later includes of it are dropped. An include inside an
+``#if``/``#ifdef``/``#ifndef`` block (other than the file's own include guard) may be compiled out, so it
+does not count as the first: the file is expanded again at its next include and its include guard keeps
+the preprocessor from seeing it twice (a file included under ``#if`` must have one; every library file
+has one: tests/test_glsl_includes.py). Directives inside block comments are still seen: keep
+``#include`` out of comments.
 
 Mesa reports ``0:LINE(COL): error: ...`` and drops source-string ids, so ``#line`` cannot say which file
 a line came from; instead ``expand`` returns a table from expanded line to (file, line) that
@@ -40,6 +44,10 @@ STAGE_SUFFIXES = {".vert": "vert", ".frag": "frag", ".geom": "geom", ".comp": "c
 _INCLUDE = re.compile(r'^\s*#\s*include\s+"(?P<path>[^"]+)"\s*(//.*)?$')
 _INCLUDE_LOOSE = re.compile(r"^\s*#\s*include\b")
 _VERSION = re.compile(r"^\s*#\s*version\b")
+_IF = re.compile(r"^\s*#\s*(if|ifdef|ifndef)\b")
+_ENDIF = re.compile(r"^\s*#\s*endif\b")
+_IFNDEF = re.compile(r"^\s*#\s*ifndef\s+(?P<name>[A-Za-z_]\w*)\s*(//.*)?$")
+_DEFINE_BARE = re.compile(r"^\s*#\s*define\s+(?P<name>[A-Za-z_]\w*)\s*(//.*)?$")
 _IDENTIFIER = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 # Driver log locations: Mesa "0:12(5): error: ...", NVIDIA "0(12) : error C0000: ...",
@@ -116,6 +124,34 @@ def define_lines(defines: Defines | None) -> list[str]:
     return lines
 
 
+def include_guard(lines: list[str]) -> tuple[str, int] | None:
+    """(NAME, 1-based line of its ``#ifndef``) when the file's first conditional is an include guard:
+    ``#ifndef NAME`` then ``#define NAME`` (no value; blank and comment lines between are allowed) whose
+    ``#endif`` is the file's last line of code. Else None."""
+    def code(line: str) -> bool:
+        text = line.strip()
+        return bool(text) and not text.startswith("//")
+
+    first = next((i for i, line in enumerate(lines) if _IF.match(line)), None)
+    if first is None:
+        return None
+    opened = _IFNDEF.match(lines[first])
+    after = next((line for line in lines[first + 1:] if code(line)), "")
+    defined = _DEFINE_BARE.match(after)
+    if not opened or not defined or defined["name"] != opened["name"]:
+        return None
+    # the #ifndef's own #endif must be the file's last line of code
+    depth = 0
+    for i in range(first, len(lines)):
+        if _IF.match(lines[i]):
+            depth += 1
+        elif _ENDIF.match(lines[i]):
+            depth -= 1
+            if depth == 0:
+                return None if any(code(line) for line in lines[i + 1:]) else (opened["name"], first + 1)
+    return None
+
+
 @dataclass
 class _Expander:
     root: Path
@@ -124,7 +160,8 @@ class _Expander:
     done: set[str] = field(default_factory=set)
     mtimes: dict[Path, int | None] = field(default_factory=dict)  # every file looked at, for hot reload
 
-    def include(self, rel: str, stack: list[SourceLine], site: SourceLine | None) -> None:
+    def include(self, rel: str, stack: list[SourceLine], site: SourceLine | None,
+                conditional: bool = False) -> None:
         where = f"{_label(self.root, site[0])}:{site[1]}: " if site else ""
         norm = posixpath.normpath(rel)
         if norm.startswith(("/", "../")) or norm == "..":
@@ -145,12 +182,25 @@ class _Expander:
             target = _label(self.root, norm)
             raise ShaderIncludeError(f'{where}cannot include "{rel}": {target} does not exist'
                                      if site else f"{target} does not exist (glsl root {self.root})") from None
-        self.done.add(norm)
-        for number, line in enumerate(text.splitlines(), start=1):
+        lines = text.splitlines()
+        guard = include_guard(lines)
+        if conditional and guard is None:
+            raise ShaderIncludeError(f"{where}{_label(self.root, norm)} is included inside #if: give it an include "
+                                     "guard (#ifndef NAME / #define NAME ... #endif) so a later include of "
+                                     "it cannot define it twice")
+        if not conditional:
+            self.done.add(norm)
+        blocks: list[bool] = []     # per open #if: whether it may be compiled out (the guard may not)
+        for number, line in enumerate(lines, start=1):
             match = _INCLUDE.match(line)
             if match:
-                self.include(match["path"], stack + [(norm, number)], (norm, number))
+                self.include(match["path"], stack + [(norm, number)], (norm, number),
+                             conditional or any(blocks))
                 continue
+            if _IF.match(line):
+                blocks.append(guard is None or number != guard[1])
+            elif _ENDIF.match(line) and blocks:
+                blocks.pop()
             if _INCLUDE_LOOSE.match(line):
                 raise ShaderIncludeError(f'{_label(self.root, norm)}:{number}: write #include "path.glsl"')
             self.lines.append(line)

@@ -4,6 +4,7 @@
 // roughness, sky occlusion by depth in the container, density self-shadow, shading model and tone map.
 // SHADING_MODEL 0 Kajiya-Kay, 1 Marschner.
 
+#include "common/epsilon.glsl"
 #include "shading/light.glsl"
 #include "shading/kajiya_kay.glsl"
 #include "shading/marschner.glsl"
@@ -60,7 +61,7 @@ float light_through(vec3 P, vec3 L) {
     float end = 1e30;
     if (along > 0.0 && vEnds.y > 0.0) end = (vAxis.w - z) / along;
     if (along < 0.0 && vEnds.x > 0.0) end = -z / along;
-    return exp(-uShadowDensity * uFiberDensity * max(0.0, min(side, end)) / max(w, 1e-30));
+    return exp(-uShadowDensity * uFiberDensity * max(0.0, min(side, end)) / max(w, EPS_DIVISOR));
 #endif
 }
 

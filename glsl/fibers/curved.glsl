@@ -16,7 +16,15 @@
 // fibers (dv/ds near 0) needs one piece, a ray along them up to MAX_SUB.
 // Twin: app/reference.py (chord_pieces, piece_entry).
 
+#include "common/epsilon.glsl"
+#include "geometry/intervals.glsl"
+#include "geometry/container.glsl"
+#include "fibers/layout.glsl"
+#include "fibers/fiber_entry.glsl"
 #include "fibers/shape.glsl"
+
+#ifndef FIBERS_CURVED_GLSL
+#define FIBERS_CURVED_GLSL
 
 #ifndef MAX_SUB
 #define MAX_SUB 16
@@ -29,15 +37,15 @@
 int chord_pieces(float L, float dv, float sa, int ring, float eLo) {
     float rho = uRingA[ring].x + uRingB[ring].x;
     float r = rho + uFiberRadius + uCurlAmplitude;
-    float rate = TWO_PI * abs(uTwist) * (uTwistPattern == 1 ? 2.0 : 1.0);
-    float rate2 = uTwistPattern == 1 ? 2.0 * TWO_PI * abs(uTwist) : 0.0;
+    float rate = TWO_PI * abs(uTwist) * (uTwistPattern == TWIST_RAMPED ? 2.0 : 1.0);
+    float rate2 = uTwistPattern == TWIST_RAMPED ? 2.0 * TWO_PI * abs(uTwist) : 0.0;
     float f = TWO_PI * uCurlFrequency;
-    float curl = uCurlAmplitude * (uCurlPattern == 0 ? (f + rate) * (f + rate) + rate2 : f * f);
+    float curl = uCurlAmplitude * (uCurlPattern == CURL_HELIX ? (f + rate) * (f + rate) + rate2 : f * f);
     float ell = rho * 4.0 * uEllipsoid * uEllipsoid / (max(eLo, 0.25) * max(eLo, 0.25) * max(eLo, 0.25));
     float bendV = r * (rate * rate + rate2) + ell + curl;
     // L^2 |q''| without dividing by L
     float bendL = dv * dv * bendV + 2.0 * rate * dv * L * sa;
-    float n = ceil(sqrt(bendL / (0.8 * max(uFiberRadius, 1e-30))));
+    float n = ceil(sqrt(bendL / (0.8 * max(uFiberRadius, EPS_DIVISOR))));
     return int(clamp(n, 1.0, float(MAX_SUB)));
 }
 
@@ -69,3 +77,5 @@ float piece_entry(Segment seg, FiberRay fr, RingPoint P0, RingPoint P1, float in
     kind = sIn == P0.s + e.x ? 0 : (sIn == zs.x ? 1 : 2);
     return vEnd > seg.v0 && sIn <= sOut ? sIn : INF;
 }
+
+#endif

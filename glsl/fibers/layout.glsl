@@ -6,10 +6,10 @@
 // The per-ring numbers are computed once on the CPU (app/fibers/layout.py: ring_layout, in float64) and
 // arrive as uniforms (app/render/renderer.py: ring_uniforms).
 // Twin: app/fibers/layout.py (fiber_center); OSL: osl/fibers/layout.osl.
+#include "common/hash.glsl"
+
 #ifndef FIBERS_LAYOUT_GLSL
 #define FIBERS_LAYOUT_GLSL
-
-#include "common/hash.glsl"
 
 // MAX_RINGS is app/fibers/limits.py's, injected (app.fibers.glsl_defines); the fallback lets the file
 // compile alone, and tests/test_fibers_model.py holds it equal.

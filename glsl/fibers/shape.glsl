@@ -18,6 +18,11 @@
 // Twin: app/fibers/shape.py (fiber_center_at, shape_twist, shape_scale), app/reference.py (ring_point,
 // ring_frame_center). The pattern codes are app/fibers/shape.py's, injected (app.fibers.glsl_defines).
 
+#include "geometry/container.glsl"
+
+#ifndef FIBERS_SHAPE_GLSL
+#define FIBERS_SHAPE_GLSL
+
 uniform float uEllipsoid;
 uniform float uTwist;           // turns over the guide
 uniform int uTwistPattern;
@@ -154,3 +159,5 @@ vec2 ring_frame_center(vec2 rest, CurlTurn curl, RingPoint P) {
 #endif
     return c;
 }
+
+#endif

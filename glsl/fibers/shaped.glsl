@@ -21,7 +21,21 @@
 // with nothing to do gets no candidates (docs/performance.md).
 // Twin: app/reference.py (shaped_nearest_segment).
 
+#include "common/epsilon.glsl"
+#include "common/hash.glsl"
+#include "geometry/intervals.glsl"
+#include "geometry/container.glsl"
+#include "fibers/layout.glsl"
+#include "fibers/hit.glsl"
+#include "fibers/counters.glsl"
+#include "fibers/mode.glsl"
+#include "fibers/fiber_entry.glsl"
+#include "fibers/candidates.glsl"
+#include "fibers/shape.glsl"
 #include "fibers/curved.glsl"
+
+#ifndef FIBERS_SHAPED_GLSL
+#define FIBERS_SHAPED_GLSL
 
 #ifndef SHAPE_ELLIPSOID
 #define SHAPE_ELLIPSOID 1   // 0: built for ellipsoid 0 (the bands of the segment are the arc's)
@@ -41,7 +55,7 @@ Bands segment_bands(Segment seg) {
 
 vec2 ring_band(int i, Bands b) {
     float rho = uRingA[i].x, dr = uRingB[i].x;
-    float grow = uFiberRadius + uCurlAmplitude + 1e-6;
+    float grow = uFiberRadius + uCurlAmplitude + EPS_BAND;
     return vec2(max(0.0, b.eLo * (rho - dr) - grow), b.eHi * (rho + dr) + grow);
 }
 
@@ -161,10 +175,10 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
 #endif
             // the candidates: slots within the reach of the angles the piece sweeps (a chord never
             // sweeps half a turn or more: past 2.5 radians it passes so near the axis that all are taken)
-            float reach = shaped_reach(i, arcBands, chord_distance(P0.p, P1.p) * (1.0 - 1e-5));
+            float reach = shaped_reach(i, arcBands, chord_distance(P0.p, P1.p) * (1.0 - EPS_CHORD));
             // exact: a hit nearer than one on candidate t lies before it on the chord, so its fiber's slot
             // is at most two reaches further on (traverse_straight's rule, with the piece's reach)
-            int after = gMode == 1 ? int(floor(2.0 * reach * ringB.z * (1.0 + 1e-6))) + 1 : n;
+            int after = gMode == 1 ? int(floor(2.0 * reach * ringB.z * (1.0 + EPS_AFTER))) + 1 : n;
             vec2 pA = dot(P0.p, P0.p) > 0.0 ? P0.p : P1.p;
             vec2 pB = dot(P1.p, P1.p) > 0.0 ? P1.p : pA;
             float thA = atan(pA.y, pA.x);
@@ -180,6 +194,8 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
             ivec2 run0 = candidate_run(0, j0, dir, count, n, share);
             ivec2 run1 = candidate_run(1, j0, dir, count, n, share);
             int end = run0.y + run1.y;
+            // the scan's rules (skip, tie order, fast/exact stop) as traverse_straight's: straight.glsl
+            // says why the two loops are apart; change both together
             for (int t = 0; t < end; t++) {
                 gIters++;
                 gTests++;
@@ -213,7 +229,9 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
     float v = unit_to_v(seg, ur.O.z + (hit ? best.s : 0.0) * ur.D.z);
     int ringHit = max(best.ring, 0);
     best.c = fiber_center_at(bestRest, v, ringHit, bestPhase);
-    best.dcdv = (fiber_center_at(bestRest, v + 1e-3, ringHit, bestPhase)
-               - fiber_center_at(bestRest, v - 1e-3, ringHit, bestPhase)) / 2e-3;
+    best.dcdv = (fiber_center_at(bestRest, v + DCDV_STEP, ringHit, bestPhase)
+               - fiber_center_at(bestRest, v - DCDV_STEP, ringHit, bestPhase)) / (2.0 * DCDV_STEP);
     return best;
 }
+
+#endif

@@ -15,8 +15,8 @@
 // Twin: app/render/bvh.py (segment_cylinders, segment_boxes, the layout); tests/render/test_bvh.py walks
 // the same tree in numpy.
 
-#ifndef BVH_GLSL
-#define BVH_GLSL
+#ifndef GEOMETRY_BVH_GLSL
+#define GEOMETRY_BVH_GLSL
 
 #include "common/epsilon.glsl"
 #include "geometry/container.glsl"
@@ -114,7 +114,7 @@ void pop(inout uint node, inout uint trail) {
 // only falls as nearer fibers are found, so nothing skipped can hold the nearest fiber.
 void walk_to_leaf(inout uint node, inout uint trail, vec3 rd, float tNear, float tCut) {
     // a zero component gives a large finite reciprocal: boxes then compare as slabs, with no NaN
-    vec3 invD = 1.0 / mix(max(abs(rd), vec3(1e-30)), min(-abs(rd), vec3(-1e-30)), lessThan(rd, vec3(0.0)));
+    vec3 invD = 1.0 / mix(max(abs(rd), vec3(EPS_DIVISOR)), min(-abs(rd), vec3(-EPS_DIVISOR)), lessThan(rd, vec3(0.0)));
     if (node == 0u && trail == 0u) {
         // the start: the root itself (a tree of one leaf is one cylinder)
         vec2 root = node_interval(0, rd, invD, uBvhDepth == 0);

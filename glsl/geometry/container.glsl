@@ -11,7 +11,11 @@
 // along a ray is kept while w > 0, so the nearest hit there is the nearest hit in the world.
 // Twin: app/reference.py (segment, to_unit_space, unit_to_world_t, z_cut_unit).
 
+#include "common/epsilon.glsl"
 #include "geometry/intervals.glsl"
+
+#ifndef GEOMETRY_CONTAINER_GLSL
+#define GEOMETRY_CONTAINER_GLSL
 
 struct Segment {
     vec3 p0;            // camera-relative
@@ -40,7 +44,7 @@ struct UnitRay {
 // How far a joint plane leans past the end point per unit of radius (tan of its tilt).
 float joint_slope(vec3 n) {
     float c = abs(n.z);
-    return sqrt(max(0.0, 1.0 - c * c)) / max(c, 1e-6);
+    return sqrt(max(0.0, 1.0 - c * c)) / max(c, EPS_JOINT_COS);
 }
 
 Segment make_segment(vec4 a, vec4 b, vec4 c, vec4 d, vec4 e) {
@@ -163,3 +167,5 @@ float z_cut_unit(Segment seg, float vEnd) {
     float z = (vEnd - seg.v0) / (seg.v1 - seg.v0) * seg.h;
     return z / (seg.r0 + seg.kappa * z);
 }
+
+#endif

@@ -6,6 +6,9 @@
 
 #include "common/epsilon.glsl"
 
+#ifndef GEOMETRY_INTERVALS_GLSL
+#define GEOMETRY_INTERVALS_GLSL
+
 // Stable roots (pbrt): q = -(b + sign(b) sqrt(disc)), t0 = q / a, t1 = c / q, with the discriminant
 // a r^2 - cross^2 factored as (sqrt(a) r - |cross|)(sqrt(a) r + |cross|) so it never cancels. A ray
 // parallel to the axis (a = 0) is inside for every t or for none.
@@ -35,3 +38,5 @@ vec2 slab(float o, float d, float lo, float hi) {
     vec2 along = (o >= lo && o <= hi) ? vec2(-INF, INF) : vec2(INF, -INF);    // d == 0
     return d == 0.0 ? along : vec2(min(ta, tb), max(ta, tb));
 }
+
+#endif

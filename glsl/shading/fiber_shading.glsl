@@ -4,9 +4,10 @@
 // SHADING_MODEL 0 Kajiya-Kay, 1 Marschner; SHADOW_MODE 0 off, 1 density estimate, 2 traced shadow ray
 // (the same traversal, any hit, inside the hit's container).
 
-#ifndef FIBER_SHADING_GLSL
-#define FIBER_SHADING_GLSL
+#ifndef SHADING_FIBER_SHADING_GLSL
+#define SHADING_FIBER_SHADING_GLSL
 
+#include "common/epsilon.glsl"
 #include "fibers/traverse.glsl"
 #include "shading/light.glsl"
 #include "shading/kajiya_kay.glsl"
@@ -44,7 +45,7 @@ float light_transmittance(Segment seg, UnitRay ur, FiberHit hit, vec3 L) {
     float w = seg.r0 / (1.0 - seg.kappa * Pu.z);
     vec3 Pl = Pu * w;
     vec3 Ll = transpose(mat3(seg.ex, seg.ey, seg.ez)) * L;
-    vec3 Ql = Pl + Ll * (1e-3 * w);
+    vec3 Ql = Pl + Ll * (EPS_SHADOW_START * w);
     vec3 Qu = Ql / (seg.r0 + seg.kappa * Ql.z);
     UnitRay sr = ur;
     sr.O = Pu;

@@ -4,6 +4,9 @@
 // wider secondary one toward the tip, plus a Lambert term on the true fiber normal so round fibers
 // read as round. Returns reflected radiance per unit light intensity.
 
+#ifndef SHADING_KAJIYA_KAY_GLSL
+#define SHADING_KAJIYA_KAY_GLSL
+
 float kajiya_kay_lobe(vec3 T, vec3 V, vec3 L, float shift, float exponent) {
     vec3 Ts = normalize(T + shift * cross(T, cross(V, T)));
     float tl = dot(Ts, L);
@@ -21,3 +24,5 @@ vec3 shade_kajiya_kay(vec3 T, vec3 N, vec3 V, vec3 L, vec3 albedo, float roughne
     float secondary = kajiya_kay_lobe(T, V, L, 0.15, 0.5 * exponent);
     return albedo * diffuse * 0.8 + 0.12 * vec3(primary) + 0.25 * albedo * secondary;
 }
+
+#endif

@@ -11,8 +11,12 @@
 // rim a rim: a back light reaches the fibers at a container's edge and barely the ones in front.
 // SHADING_MODEL 0 Kajiya-Kay, 1 Marschner.
 
+#include "common/epsilon.glsl"
 #include "shading/kajiya_kay.glsl"
 #include "shading/marschner.glsl"
+
+#ifndef SHADING_LIGHT_GLSL
+#define SHADING_LIGHT_GLSL
 
 #ifndef SHADING_MODEL
 #define SHADING_MODEL 0
@@ -54,7 +58,7 @@ const float FORWARD_SCATTER = 0.25;
 // here: the path is capped at 4 container radii.
 float density_transmittance(ContainerShadow cs, vec3 L) {
     vec3 Lc = cs.containerFromWorld * L;
-    float dd = max(dot(Lc.xy, Lc.xy), 1e-6);
+    float dd = max(dot(Lc.xy, Lc.xy), EPS_LIGHT_AXIS2);
     float b = dot(cs.c, Lc.xy);
     float t = (-b + sqrt(max(b * b - dd * (dot(cs.c, cs.c) - 1.0), 0.0))) / dd;
     return exp(-FORWARD_SCATTER * cs.density * min(t, 4.0));
@@ -78,3 +82,5 @@ vec3 shade_lights(vec3 T, vec3 N, vec3 V, vec3 color, float roughness, float occ
     }
     return radiance;
 }
+
+#endif

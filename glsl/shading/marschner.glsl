@@ -5,6 +5,9 @@
 // hair shading in Unreal"): R ~ cos(phi/2), TT peaks in forward scattering, TRT gives the coloured glint.
 // ``color`` is what one pass through a fiber lets through, so TT and TRT are tinted by powers of it.
 
+#ifndef SHADING_MARSCHNER_GLSL
+#define SHADING_MARSCHNER_GLSL
+
 const float HAIR_F0 = 0.04652;          // Fresnel at normal incidence, eta = 1.55
 const float CUTICLE_TILT = 0.035;       // radians (about 2 degrees)
 
@@ -47,3 +50,5 @@ vec3 shade_marschner(vec3 T, vec3 V, vec3 L, vec3 color, float roughness) {
     // a diffuse floor for multiple scattering between fibers, which the three lobes leave out
     return S + color * 0.25 * sqrt(max(0.0, 1.0 - sinL * sinL));
 }
+
+#endif

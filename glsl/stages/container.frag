@@ -9,17 +9,12 @@
 
 #include "fibers/traverse.glsl"
 #include "shading/fiber_shading.glsl"
+#include "stages/view_ray.glsl"
 
 flat in vec4 vSeg[7];       // the segment, packed by container.vert
 flat in int vSegment;
 
-uniform vec3 uCamRight;         // world-space camera basis, scaled by tan(fov/2) (and aspect)
-uniform vec3 uCamUp;
-uniform vec3 uCamForward;
-uniform vec2 uViewport;
-uniform vec2 uPixelOffset;      // sub-pixel offset of the ray (antialiasing, stability tests)
-uniform float uNear;
-uniform vec2 uSampleOffsets[16];
+uniform vec2 uSampleOffsets[16];    // sub-pixel offsets of the MSAA samples, in pixels
 
 #ifndef COST_PASS
 #define COST_PASS 0
@@ -47,11 +42,6 @@ uniform float uDepthScale;
 
 float log_depth(float t) {
     return clamp(log2(max(t, uNear) / uNear) * uDepthScale, 0.0, 1.0);
-}
-
-vec3 view_ray(vec2 offset) {
-    vec2 ndc = (gl_FragCoord.xy + offset) / uViewport * 2.0 - 1.0;
-    return normalize(uCamForward + ndc.x * uCamRight + ndc.y * uCamUp);
 }
 
 Shaded trace_and_shade(Segment seg, vec3 rd, bool shade) {

@@ -40,7 +40,7 @@ void main() {
         float a = 0.78539816 * float(k & 7);
         vec3 c = vec3(ro * cos(a), ro * sin(a), k < 8 ? seg.zLo : seg.zHi);
         vec4 clip = uClipFromCamera * vec4(seg.p0 + seg.ex * c.x + seg.ey * c.y + seg.ez * c.z, 1.0);
-        behind = behind || !(clip.w > 1e-6 * length(clip.xyz));
+        behind = behind || !(clip.w > EPS_CLIP_W * length(clip.xyz));
         corners[k] = clip.xy / clip.w * halfViewport;
     }
     if (behind) {
@@ -49,7 +49,7 @@ void main() {
     }
     vec2 axis = vec2(0.0);
     for (int k = 0; k < 8; k++) axis += corners[k + 8] - corners[k];
-    vec2 u = dot(axis, axis) > 1e-12 ? normalize(axis) : vec2(1.0, 0.0);
+    vec2 u = dot(axis, axis) > EPS_SCREEN_AXIS2 ? normalize(axis) : vec2(1.0, 0.0);
     vec2 v = vec2(-u.y, u.x);
     vec2 lo = vec2(3e38);
     vec2 hi = vec2(-3e38);

@@ -33,7 +33,7 @@ void main() {
     for (int k = 0; k < 8; k++) {
         vec3 c = vec3((k & 1) != 0 ? hi.x : lo.x, (k & 2) != 0 ? hi.y : lo.y, (k & 4) != 0 ? hi.z : lo.z);
         vec4 clip = uClipFromCamera * vec4(c, 1.0);
-        behind = behind || !(clip.w > 1e-6 * length(clip.xyz));
+        behind = behind || !(clip.w > EPS_CLIP_W * length(clip.xyz));
         vec2 ndc = clip.xy / clip.w;
         pLo = min(pLo, ndc);
         pHi = max(pHi, ndc);

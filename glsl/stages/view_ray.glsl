@@ -1,8 +1,8 @@
 // view_ray.glsl: the camera ray through a pixel, camera at the origin (positions are camera-relative).
 //   vec3 view_ray(vec2 offset)     offset: sub-pixel, in pixels about the pixel centre
 
-#ifndef VIEW_RAY_GLSL
-#define VIEW_RAY_GLSL
+#ifndef STAGES_VIEW_RAY_GLSL
+#define STAGES_VIEW_RAY_GLSL
 
 uniform vec3 uCamRight;         // world-space camera basis, scaled by tan(fov/2) (and aspect)
 uniform vec3 uCamUp;

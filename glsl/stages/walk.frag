@@ -16,6 +16,7 @@
 
 layout(early_fragment_tests) in;
 
+#include "common/epsilon.glsl"
 #include "fibers/traverse.glsl"
 #include "geometry/bvh.glsl"
 #include "stages/view_ray.glsl"
@@ -41,7 +42,7 @@ layout(std430, binding = 3) buffer Progress { uint unfinished; };
 // A container whose box the ray enters after bestT cannot hold a nearer fiber; the margin covers the
 // float32 rounding between the box entry and the container entry computed in unit space.
 float walk_cut(float bestT) {
-    return bestT < INF ? bestT * (1.0 + 1e-5) : INF;
+    return bestT < INF ? bestT * (1.0 + EPS_WALK_CUT) : INF;
 }
 
 void main() {

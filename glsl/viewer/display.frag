@@ -17,6 +17,7 @@
 #define VIEW 0
 #endif
 
+#include "common/epsilon.glsl"
 #include "viewer/palette.glsl"
 
 in vec2 vUv;
@@ -57,7 +58,7 @@ void main() {
 #elif VIEW == 3
         c = texelFetch(uGeom, texel, 0).xyz * 0.5 + 0.5;
 #elif VIEW == 4
-        float d = (texelFetch(uGeom, texel, 0).w - uDepthRange.x) / max(uDepthRange.y - uDepthRange.x, 1e-30);
+        float d = (texelFetch(uGeom, texel, 0).w - uDepthRange.x) / max(uDepthRange.y - uDepthRange.x, EPS_DIVISOR);
         c = as_uint8(vec3(1.0 - 0.85 * clamp(d, 0.0, 1.0)));
 #endif
     }

@@ -7,6 +7,9 @@
 
 #include "common/hash.glsl"
 
+#ifndef VIEWER_PALETTE_GLSL
+#define VIEWER_PALETTE_GLSL
+
 vec3 as_uint8(vec3 c) {
     return floor(clamp(c, 0.0, 1.0) * 255.0) / 255.0;
 }
@@ -27,3 +30,5 @@ vec3 heat_color(float x) {
     int i = min(int(s), 4);
     return as_uint8(mix(HEAT_STOPS[i], HEAT_STOPS[i + 1], s - float(i)));
 }
+
+#endif

@@ -5,6 +5,8 @@
 // N_SIDES edges each) and 4 lines along the sides. Vertex count per instance: 4 * N_SIDES + 8.
 // Positions are camera-relative (uSceneFromCamera computed in float64), as in container.vert.
 
+#include "common/epsilon.glsl"
+
 #define N_SIDES 16
 
 in vec4 in_a;               // p0.xyz, r0
@@ -27,7 +29,7 @@ vec3 rim(int e, float phi) {
     vec3 axis = normalize(in_b.xyz - in_a.xyz);
     vec3 fy = cross(axis, in_e.xyz);
     vec3 radial = r * (cos(phi) * in_e.xyz + sin(phi) * fy);
-    float slide = -dot(n, radial) / max(dot(n, axis), 1e-3);
+    float slide = -dot(n, radial) / max(dot(n, axis), EPS_PROXY_JOINT_COS);
     return p + radial + slide * axis;
 }
 
