@@ -577,7 +577,7 @@ EPS_ANGLE = 2e-5                        # glsl/common/epsilon.glsl
 def ring_uniforms(lay: fibers.RingLayout) -> dict[str, np.ndarray]:
     """The per-ring uniform arrays of glsl/fibers/layout.glsl, padded to MAX_RINGS. Besides the layout,
     uRingB carries what the traversal would otherwise divide for per arc: 1 / dphi, and how many
-    candidates past an improvement can still be nearer (2 reaches, traverse.glsl)."""
+    candidates past an improvement can still be nearer (2 reaches, fibers/straight.glsl)."""
     K = lay.rings
     ring_a = np.zeros((MAX_RINGS, 4), np.float32)
     ring_b = np.zeros((MAX_RINGS, 4), np.float32)
@@ -602,7 +602,7 @@ LOOP_HEADROOM = 1024
 
 def candidate_caps(p: Params, scene: Scene) -> tuple[np.ndarray, int]:
     """Per ring, the most fibers one piece (arc) of a ray can test in fast and exact modes, and the loop
-    passes one test costs. Mirrors the candidate windows of glsl/fibers/traverse.glsl: a piece of ring i
+    passes one test costs. Mirrors the candidate windows of glsl/fibers/straight.glsl and candidates.glsl: a piece of ring i
     runs between the ring's outer circle and its inner circle or the ray's closest approach to the axis;
     seen from the axis it sweeps at most acos(inner / outer). The window adds the ring's reach on either
     side. Curved fibers: per ring the loop passes of one arc, all its chord pieces included, and 1
