@@ -602,8 +602,8 @@ LOOP_HEADROOM = 1024
 
 def candidate_caps(p: Params, scene: Scene) -> tuple[np.ndarray, int]:
     """Per ring, the most fibers one piece (arc) of a ray can test in fast and exact modes, and the loop
-    passes one test costs. Mirrors the candidate windows of glsl/fibers/straight.glsl and candidates.glsl: a piece of ring i
-    runs between the ring's outer circle and its inner circle or the ray's closest approach to the axis;
+    passes one test costs. Mirrors the candidate windows of glsl/fibers/straight.glsl and candidates.glsl: a
+    piece of ring i runs between the ring's outer circle and its inner circle or the ray's closest approach to the axis;
     seen from the axis it sweeps at most acos(inner / outer). The window adds the ring's reach on either
     side. Curved fibers: per ring the loop passes of one arc, all its chord pieces included, and 1
     (``_shaped_arc_passes``)."""
