@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from PIL import Image
 
 from app.cli import main
+from app.params import ParamError
 
 
 def test_render_writes_png_and_npy(tmp_path, capsys):
@@ -70,3 +73,28 @@ def test_info_reports_fibers_and_constant_bytes(capsys):
     line = lambda text, key: next(x for x in text.splitlines() if x.startswith(key))  # noqa: E731
     assert line(a, "scene GPU bytes") == line(b, "scene GPU bytes")
     assert "86400 exact" in line(a, "fibers  ")
+
+
+def test_set_is_parsed_once_for_every_face(tmp_path):
+    """The command line and the OSL export read --set alike, the bracket-free colour included."""
+    from app.export.osl import load_look
+    from app.presets import resolve_params
+
+    sets = ["look.color=0.8,0.5,0.3", "fibers.rings=12"]
+    cli_params, _ = resolve_params("default", sets)
+    osl_params, _, _ = load_look("default", sets)
+    assert cli_params["look.color"] == osl_params["look.color"] == (0.8, 0.5, 0.3)
+    assert cli_params == osl_params
+    with pytest.raises(ParamError) as cli_err:
+        resolve_params("default", ["look.color=red"])
+    with pytest.raises(ParamError) as osl_err:
+        load_look("default", ["look.color=red"])
+    assert str(cli_err.value) == str(osl_err.value) and str(cli_err.value).startswith("--set: ")
+
+
+def test_budget_and_size_options_read_units(tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        main(["render", "default", "--explicit-budget", "lots", "-o", str(tmp_path / "x.png")])
+    assert "'lots' is not a size" in capsys.readouterr().err
+    assert main(["render", "default", "--size", "0x10", "-o", str(tmp_path / "x.png")]) == 2
+    assert "between 1 and 16384" in capsys.readouterr().err

@@ -42,6 +42,7 @@ import moderngl
 import numpy as np
 
 from .. import fibers
+from ..errors import VfiberError
 from ..fibers import MAX_RINGS, fiber_key, key_random
 from ..gl.shaders import ProgramCache
 from ..params import Params
@@ -65,7 +66,7 @@ GEOMETRY_KEYS = ("fibers.rings", "fibers.phi_step", "fibers.phi_increment", "fib
 SHAPE_KEYS = ("shape.ellipsoid", "shape.curl_amplitude", "shape.twist")
 
 
-class ExplicitBudgetError(MemoryError):
+class ExplicitBudgetError(VfiberError, MemoryError):
     """The explicit fibers would need more GPU memory than the budget allows; nothing was allocated."""
 
     def __init__(self, needed: int, budget: int, fibers: int, per_fiber: float):

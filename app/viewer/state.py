@@ -26,13 +26,13 @@ from typing import Any
 
 from ..params import BY_KEY, SPEC, ParamError, Params, max_fiber_radius, suggest
 from ..presets import PresetError, Preset, find_preset, load_preset, save_preset
+from ..scene.grooms import GROOM_SUFFIXES
 
 VIEWS: tuple[str, ...] = ("shaded", "fiber ids", "rings", "normals", "depth", "heat map", "proxies")
 INTERACTIVE_SCALES: tuple[str, ...] = ("25%", "50%", "75%", "100%", "auto")
 INTERACTIVE_MODES: tuple[str, ...] = ("fast", "final mode")
 FRAME_PATHS: tuple[str, ...] = ("direct", "readback")
 TURNTABLE_TURNS: tuple[str, ...] = ("camera", "lights")
-GROOM_SUFFIXES: tuple[str, ...] = (".hair", ".data", ".tfx", ".ply")
 UNDO_DEPTH = 200
 
 
