@@ -14,8 +14,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 from .errors import UsageError, VfiberError
 from .output import IMAGE_SUFFIXES, OUTPUTS, output_data, output_image, unpremultiplied_rgba, write_output
 from .params import ParamError, Params
@@ -310,29 +308,11 @@ def cmd_turntable(args) -> int:
 
 
 def cmd_info(args) -> int:
-    from .fibers import fiber_count, ring_layout
-    from .render.renderer import frame_gpu_bytes, scene_gpu_bytes
+    from .info import info_lines
 
     p, label = resolve_params(scene_target(args), args.set)
-    scene = build_scene_for(p)
-    thesis, exact = fiber_count(p, scene.n_segments and scene.n_guides or 0)
-    lay = ring_layout(p)
-    lo, hi = scene.bounds()
-    print(f"source           {label}")
-    print(f"guides           {scene.n_guides}")
-    print(f"container segs   {scene.n_segments}")
-    # the containers' box (radii included); a groom also prints its strands' own box as "groom bbox"
-    print(f"container box    {np.round(lo, 4).tolist()} .. {np.round(hi, 4).tolist()} (radii included)")
-    print(f"rings            {lay.rings} (fibers per ring, outer to inner: "
-          f"{', '.join(str(int(n)) for n in lay.n[:8])}{' ...' if lay.rings > 8 else ''})")
-    print(f"fibers/container {lay.fibers_per_container}")
-    print(f"fibers           {exact} exact; {thesis:.1f} by the thesis's expression 4.1")
-    print(f"scene GPU bytes  {scene_gpu_bytes(scene)} (the same whatever the fiber count)")
-    print(f"per-pixel bytes  {frame_gpu_bytes((1280, 720))} at 1280x720, {frame_gpu_bytes((640, 360))} at 640x360 "
-          "(colour, ids, geometry, walk state: sized by the image alone)")
-    if hasattr(scene, "source_info"):
-        for line in scene.source_info():
-            print(line)
+    for line in info_lines(p, build_scene_for(p), label):
+        print(line)
     return 0
 
 

@@ -75,6 +75,33 @@ def test_info_reports_fibers_and_constant_bytes(capsys):
     assert "86400 exact" in line(a, "fibers  ")
 
 
+SINTEL = Path(__file__).resolve().parents[1].parent / "shared" / "hair-data" / "sintel_hair.tfx"
+
+
+@pytest.mark.skipif(not SINTEL.exists(), reason=f"shared hair data not found at {SINTEL}")
+def test_viewer_and_info_show_one_explicit_figure_on_sintel(capsys):
+    """`vfiber view` and `vfiber info` once showed 150.3 MiB against 56.5 MiB for the same scene: both now
+    show what the explicit baseline allocates (render.explicit.explicit_bytes)."""
+    from types import SimpleNamespace
+
+    from app.presets import resolve_params
+    from app.render.explicit import estimate_bytes
+    from app.scene.generators import build_scene
+    from app.viewer.app import Viewer
+    from app.viewer.state import AppState
+
+    assert main(["info", str(SINTEL)]) == 0
+    line = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("GPU explicit"))
+    info_bytes = int(line.split()[2].replace(",", ""))
+
+    p, _ = resolve_params(str(SINTEL))
+    scene = build_scene(p)
+    state = AppState(params=p)
+    Viewer._update_counts(SimpleNamespace(state=state, scene=scene))   # the viewer's own count, no window
+    assert state.stats.explicit_bytes == info_bytes == estimate_bytes(scene, p)
+    assert info_bytes == 59_207_040   # 1,368 segments x 3,600 fibers x 12 B + 1,368 rows x 80 B (56.5 MiB)
+
+
 def test_set_is_parsed_once_for_every_face(tmp_path):
     """The command line and the OSL export read --set alike, the bracket-free colour included."""
     from app.export.osl import load_look
