@@ -2,12 +2,15 @@
 
 The rule: an edge A -> B is any ``import`` / ``from ... import`` in A's source that names module B of
 ``app``, at module level or inside a function or method (a lazy import still makes A depend on B; the
-cycle cli <-> export/osl of issue 17 went through lazy imports). Imports under ``if TYPE_CHECKING:`` are not
-edges: they never run, and with ``from __future__ import annotations`` the names they bring only appear in
-annotations. Nor are imports under ``if __name__ == "__main__":``: they run only when the module is the
-program, loaded as ``__main__`` and not under its own name, so they cannot close a cycle. ``from pkg import name`` is an edge to ``pkg.name`` when that is a module, else to ``pkg``
-(its ``__init__``). The implicit import of a parent package is not an edge: a package's ``__init__`` that
-lazily imports one of its modules is not a cycle with that module.
+cycle cli <-> export/osl of issue 17 went through lazy imports). Not edges:
+- imports under ``if TYPE_CHECKING:``: they never run, and with ``from __future__ import annotations`` the
+  names they bring only appear in annotations (viewer/script.py's Viewer, for one);
+- imports under ``if __name__ == "__main__":``: they run only when the module is the program, loaded as
+  ``__main__`` and not under its own name, so they cannot close a cycle;
+- the implicit import of a parent package: a package's ``__init__`` that lazily imports one of its modules
+  is not a cycle with that module.
+``from pkg import name`` is an edge to ``pkg.name`` when that is a module, else to ``pkg`` (its
+``__init__``).
 """
 
 from __future__ import annotations

@@ -23,11 +23,11 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 from app.gl.context import create_headless  # noqa: E402
+from app.info import gpu_bytes  # noqa: E402
 from app.params import Params  # noqa: E402
 from app.render.camera import Camera  # noqa: E402
 from app.render.renderer import Renderer  # noqa: E402
 from app.scene.generators import build_scene  # noqa: E402
-from app.info import gpu_bytes  # noqa: E402
 from app.scene.grooms import load_groom, scene_from_groom  # noqa: E402
 from tests.test_groom_render import DATA, coverage, groom_params  # noqa: E402
 
