@@ -20,11 +20,13 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
+from .errors import VfiberError
+
 STALE_UNKNOWN_S = 3600  # a temporary file without a pid (older vfiber) is stale after an hour
 _active: set[str] = set()  # temporary files being written now, for remove_active_temporaries
 
 
-class SaveError(OSError):
+class SaveError(VfiberError, OSError):
     """A file could not be written; ``str(e)`` is one line naming the file the person asked for."""
 
     def __init__(self, path: Path | str, why: str, code: int | None = None):

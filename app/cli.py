@@ -14,76 +14,23 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
+from .errors import UsageError, VfiberError
+from .output import IMAGE_SUFFIXES, OUTPUTS, output_data, output_image, unpremultiplied_rgba, write_output
+from .params import ParamError, Params
+from .params import parse_assignment as parse_cli_assignment
+from .presets import DEFAULT_PRESET, groom_relative_to_preset, resolve_params
+from .scene.grooms import GROOM_SUFFIXES
+from .units import parse_bytes, parse_size
 
-from .params import BY_KEY, ParamError, Params, parse_assignment
-
-GROOM_SUFFIXES = (".hair", ".data", ".tfx", ".ply")
-OUTPUTS = ("shaded", "id", "depth", "normal", "ring", "cost")
-DEFAULT_PRESET = "default"
-IMAGE_SUFFIXES = (".npy", ".exr", ".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")  # what write_output writes
-
-
-class UsageError(ValueError):
-    """A command-line mistake the user can fix."""
+# Names other code and older scripts import from here; they live where the layer below can reach them.
+__all__ = ["DEFAULT_PRESET", "GROOM_SUFFIXES", "IMAGE_SUFFIXES", "OUTPUTS", "UsageError", "groom_relative_to_preset",
+           "main", "output_data", "output_image", "parse_cli_assignment", "parse_size", "resolve_params",
+           "unpremultiplied_rgba", "write_output"]
 
 
 # --------------------------------------------------------------------------------------------------
 # parameters from the command line
 # --------------------------------------------------------------------------------------------------
-def resolve_params(target: str | None, assignments: list[str]) -> tuple[Params, str]:
-    """Params from a preset (name or file) or a groom file, then ``--set`` overrides. Returns a label."""
-    values: dict = {}
-    label = "defaults"
-    if target and Path(target).suffix.lower() in GROOM_SUFFIXES:
-        if not Path(target).exists():
-            raise UsageError(f"{target}: no such groom file")
-        values = {"scene.generator": "groom", "scene.groom_file": str(Path(target).resolve())}
-        label = target
-    else:
-        from .presets import bundled_names, find_preset
-
-        name = target or (DEFAULT_PRESET if DEFAULT_PRESET in bundled_names() else None)
-        if name:
-            preset = find_preset(name)
-            values = groom_relative_to_preset(dict(preset.params.values), preset.path)
-            label = str(preset.path or name)
-    for text in assignments:
-        key, value = parse_cli_assignment(text)
-        values[key] = value
-    try:
-        return Params(values), label
-    except ParamError as e:
-        if assignments and e.source is None:
-            raise ParamError(e.bare + _tuple_hint(e.key), key=e.key, source="--set") from None
-        raise
-
-
-def parse_cli_assignment(text: str) -> tuple[str, object]:
-    """``--set key=value``; a colour or point may also be written without brackets: look.color=0.8,0.5,0.3."""
-    key, value = parse_assignment(text)
-    if isinstance(value, str) and "," in value and BY_KEY[key].kind is tuple:
-        try:
-            value = [float(v) for v in value.split(",")]
-        except ValueError:
-            pass
-    return key, value
-
-
-def _tuple_hint(key: str | None) -> str:
-    if key in BY_KEY and BY_KEY[key].kind is tuple:
-        return f" (write it as {key}=0.8,0.5,0.3 or {key}=[0.8,0.5,0.3])"
-    return ""
-
-
-def groom_relative_to_preset(values: dict, preset_path: Path | None) -> dict:
-    """A relative ``scene.groom_file`` in a preset names a file beside the preset, wherever vfiber runs."""
-    groom = values.get("scene.groom_file") or ""
-    if groom and preset_path is not None and not Path(groom).is_absolute():
-        values["scene.groom_file"] = str(Path(preset_path).parent / groom)
-    return values
-
-
 def scene_target(args) -> str | None:
     """The positional target or --preset; both at once must agree (else one would be silently ignored)."""
     if args.target and args.preset and args.target != args.preset:
@@ -149,97 +96,6 @@ def _gl_allocation_error(e: Exception, size: tuple[int, int]) -> UsageError | No
         return UsageError(f"--size {size[0]}x{size[1]}: this OpenGL cannot allocate a frame that large "
                           f"({text.strip().splitlines()[0] if text.strip() else type(e).__name__}); render smaller")
     return None
-
-
-def parse_budget(text: str) -> int:
-    from .bench.__main__ import parse_bytes
-
-    return parse_bytes(text)
-
-
-def parse_size(text: str) -> tuple[int, int]:
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise UsageError(f"--size {text!r}: expected WIDTHxHEIGHT, e.g. 640x360") from None
-    if not (1 <= w <= 16384 and 1 <= h <= 16384):
-        raise UsageError(f"--size {text!r}: width and height must be between 1 and 16384")
-    return w, h
-
-
-# --------------------------------------------------------------------------------------------------
-# output files
-# --------------------------------------------------------------------------------------------------
-def unpremultiplied_rgba(frame, p: Params) -> np.ndarray:
-    """(H, W, 4) uint8: the fibers' own colour with their coverage as alpha (background taken out), so the
-    picture composites over any plate. The renderer hands back colour over the background and the coverage;
-    where coverage is 0 the colour is black and fully transparent."""
-    bg = np.round(np.clip(np.asarray(p["look.background"]), 0, 1) ** (1 / 2.2) * 255)
-    a = frame.coverage.astype(np.float64)[..., None]
-    premultiplied = frame.color.astype(np.float64) - (1.0 - a) * bg
-    straight = np.where(a > 0, premultiplied / np.maximum(a, 1e-6), 0.0)
-    rgb = np.clip(np.round(straight), 0, 255)
-    return np.concatenate([rgb, np.round(a * 255)], axis=-1).astype(np.uint8)
-
-
-def output_image(frame, kind: str, p: Params, alpha: bool = False) -> np.ndarray:
-    from .render import debug_views as dv
-
-    if kind == "shaded":
-        return unpremultiplied_rgba(frame, p) if alpha else frame.color
-    if kind == "id":
-        return dv.fiber_id_image(frame.ids)
-    if kind == "ring":
-        return dv.ring_image(frame.ids, p["fibers.rings"])
-    if kind == "depth":
-        return dv.depth_image(frame.geom)
-    if kind == "normal":
-        return dv.normal_image(frame.geom)
-    return dv.cost_image(frame.cost)
-
-
-def output_data(frame, kind: str, p: Params | None = None, alpha: bool = False) -> np.ndarray:
-    """Raw values for .npy/.exr: ids as uint32, the rest float32. Shaded with ``alpha``: premultiplied
-    RGBA (the compositors' convention for EXR), coverage as alpha."""
-    if kind == "shaded":
-        if alpha:
-            rgba = unpremultiplied_rgba(frame, p).astype(np.float32) / 255.0
-            rgba[..., :3] *= rgba[..., 3:4]
-            return rgba
-        return frame.color.astype(np.float32) / 255.0
-    if kind in ("id", "ring"):
-        return frame.ids if kind == "id" else frame.ids[..., 1:2]
-    if kind == "depth":
-        return frame.geom[..., 3:4]
-    if kind == "normal":
-        return frame.geom[..., :3]
-    return frame.cost
-
-
-def write_output(path: Path, frame, kind: str, p: Params, alpha: bool = False) -> None:
-    from PIL import Image
-
-    from .atomic import atomic_path
-
-    suffix = path.suffix.lower()
-    with atomic_path(path) as tmp:
-        if suffix == ".npy":
-            with open(tmp, "wb") as f:
-                np.save(f, output_data(frame, kind, p, alpha))
-        elif suffix == ".exr":
-            import OpenEXR
-
-            data = output_data(frame, kind, p, alpha)
-            if data.dtype != np.uint32:
-                data = data.astype(np.float32)
-            channels = {1: {"Y": data[..., 0]}, 3: {"RGB": data}, 4: {"RGBA": data}}[data.shape[-1]]
-            header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-            OpenEXR.File(header, channels).write(str(tmp))
-        elif suffix in (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp"):
-            img = output_image(frame, kind, p, alpha)
-            Image.fromarray(img).save(tmp, format=Image.registered_extensions()[suffix])
-        else:
-            raise UsageError(f"{path}: unknown image type {suffix!r}; use .png, .exr or .npy")
 
 
 # --------------------------------------------------------------------------------------------------
@@ -452,29 +308,11 @@ def cmd_turntable(args) -> int:
 
 
 def cmd_info(args) -> int:
-    from .fibers import fiber_count, ring_layout
-    from .render.renderer import frame_gpu_bytes, scene_gpu_bytes
+    from .info import info_lines
 
     p, label = resolve_params(scene_target(args), args.set)
-    scene = build_scene_for(p)
-    thesis, exact = fiber_count(p, scene.n_segments and scene.n_guides or 0)
-    lay = ring_layout(p)
-    lo, hi = scene.bounds()
-    print(f"source           {label}")
-    print(f"guides           {scene.n_guides}")
-    print(f"container segs   {scene.n_segments}")
-    # the containers' box (radii included); a groom also prints its strands' own box as "groom bbox"
-    print(f"container box    {np.round(lo, 4).tolist()} .. {np.round(hi, 4).tolist()} (radii included)")
-    print(f"rings            {lay.rings} (fibers per ring, outer to inner: "
-          f"{', '.join(str(int(n)) for n in lay.n[:8])}{' ...' if lay.rings > 8 else ''})")
-    print(f"fibers/container {lay.fibers_per_container}")
-    print(f"fibers           {exact} exact; {thesis:.1f} by the thesis's expression 4.1")
-    print(f"scene GPU bytes  {scene_gpu_bytes(scene)} (the same whatever the fiber count)")
-    print(f"per-pixel bytes  {frame_gpu_bytes((1280, 720))} at 1280x720, {frame_gpu_bytes((640, 360))} at 640x360 "
-          "(colour, ids, geometry, walk state: sized by the image alone)")
-    if hasattr(scene, "source_info"):
-        for line in scene.source_info():
-            print(line)
+    for line in info_lines(p, build_scene_for(p), label):
+        print(line)
     return 0
 
 
@@ -543,7 +381,7 @@ def make_parser() -> argparse.ArgumentParser:
 
     def scene_args(sp):
         sp.add_argument("target", nargs="?", help="preset name or .toml file, or a groom file "
-                        "(.hair .data .tfx .ply)")
+                        f"({' '.join(GROOM_SUFFIXES)})")
         sp.add_argument("--preset", help="preset name or file (same as the positional argument)")
         sp.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override a parameter, e.g. --set fibers.rings=20 (repeatable)")
@@ -558,7 +396,7 @@ def make_parser() -> argparse.ArgumentParser:
                    help="virtual fibers in containers (default) or the conventional explicit strands")
     r.add_argument("--allow-slow", action="store_true",
                    help="render even when the estimate says the frame takes over a minute or over 4 GiB")
-    r.add_argument("--explicit-budget", type=parse_budget, default=None, metavar="BYTES",
+    r.add_argument("--explicit-budget", type=parse_bytes, default=None, metavar="BYTES",
                    help="GPU bytes the explicit method may use before it refuses (default 1GiB)")
     r.add_argument("--alpha", action="store_true",
                    help="shaded PNG/TIFF as RGBA with the fibers' coverage as alpha (EXR/NPY: premultiplied)")
@@ -633,23 +471,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def describe_error(e: Exception) -> str:
     """One line for a person; unexpected errors say so and how to see the details."""
-    from .gl.context import GLContextError
-    from .gl.shaders import ShaderError
-
-    expected = (ParamError, UsageError, GLContextError, ShaderError, FileNotFoundError, PermissionError)
-    try:
-        from .render.explicit import ExplicitBudgetError
-        expected += (ExplicitBudgetError,)
-    except ImportError:
-        pass
-    try:
-        from .scene.grooms import GroomError
-        expected += (GroomError,)
-    except ImportError:
-        pass
-    from .atomic import SaveError
-    expected += (SaveError,)
-    if isinstance(e, expected):
+    if isinstance(e, (VfiberError, FileNotFoundError, PermissionError)):
         return str(e)
     return f"unexpected error: {type(e).__name__}: {e} (run with VFIBER_DEBUG=1 for the traceback)"
 

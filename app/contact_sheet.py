@@ -38,7 +38,7 @@ def parse_variants(base_target: str | None, base_sets: list[str], variants: list
         targets = [t for t in tokens if "=" not in t]
         sets = [t for t in tokens if "=" in t]
         if len(targets) > 1:
-            from .cli import UsageError
+            from .errors import UsageError
             raise UsageError(f"--variant {text!r}: at most one preset or groom per variant")
         p, _ = resolve(targets[0] if targets else base_target, list(base_sets) + sets)
         if mode:

@@ -11,11 +11,14 @@ from __future__ import annotations
 
 import difflib
 import math
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
-from typing import Any, Iterator
+from typing import Any
+
+from .errors import VfiberError
 
 
-class ParamError(ValueError):
+class ParamError(VfiberError, ValueError):
     """A parameter value a person supplied is unusable. The message names the key, the value and what is
     allowed; ``source`` (a file name, ``--set`` or ``slider``) is prefixed when known."""
 
@@ -306,7 +309,8 @@ def check_relations(p: Params) -> None:
 
 
 def parse_assignment(text: str) -> tuple[str, Any]:
-    """Parse one ``--set key=value`` (value in TOML syntax, bare words taken as strings)."""
+    """Parse one ``--set key=value`` (value in TOML syntax, bare words taken as strings). A colour or point
+    may also be written without brackets: look.color=0.8,0.5,0.3."""
     import tomllib
 
     if "=" not in text:
@@ -323,4 +327,31 @@ def parse_assignment(text: str) -> tuple[str, Any]:
         raise ParamError(f"{key} = {short_repr(raw)} is not allowed: a number thousands of digits long or a "
                          f"value nested too deeply; expected {BY_KEY[key].allowed()}", key=key,
                          source="--set") from None
+    if isinstance(value, str) and "," in value and BY_KEY[key].kind is tuple:
+        try:
+            value = [float(v) for v in value.split(",")]
+        except ValueError:
+            pass
     return key, value
+
+
+def with_assignments(values: dict[str, Any], assignments: Iterable[str]) -> Params:
+    """``values`` (a preset's, or a groom's) with every ``--set key=value`` applied, validated. An error the
+    assignments caused names ``--set`` as its source (and how to write a colour, if that was the key)."""
+    assignments = list(assignments)
+    values = dict(values)
+    for text in assignments:
+        key, value = parse_assignment(text)
+        values[key] = value
+    try:
+        return Params(values)
+    except ParamError as e:
+        if assignments and e.source is None:
+            raise ParamError(e.bare + _tuple_hint(e.key), key=e.key, source="--set") from None
+        raise
+
+
+def _tuple_hint(key: str | None) -> str:
+    if key in BY_KEY and BY_KEY[key].kind is tuple:
+        return f" (write it as {key}=0.8,0.5,0.3 or {key}=[0.8,0.5,0.3])"
+    return ""

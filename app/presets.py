@@ -40,8 +40,10 @@ from typing import Any, Callable, Iterable
 import tomli_w
 
 from app.atomic import atomic_write_text
+from app.errors import UsageError
 from app.params import (BY_KEY, GROUPS, SPEC, Param, ParamError, Params, max_fiber_radius, short_repr,
-                        suggest)
+                        suggest, with_assignments)
+from app.scene.grooms import GROOM_SUFFIXES
 
 PRESET_VERSION = 2
 TOP_LEVEL = ("version", "name", "description")  # scalars allowed above the tables
@@ -467,8 +469,8 @@ def find_preset(name_or_path: str | os.PathLike[str]) -> Preset:
     path = Path(name_or_path)
     if os.path.lexists(path):  # something is there: load it, or say why it is not a preset
         if path.suffix.lower() != ".toml" and not path.is_dir():
-            raise PresetError("not a preset file: a preset is a .toml file (for a groom file use .hair, "
-                              ".data, .tfx or .ply)", source=str(path))
+            raise PresetError("not a preset file: a preset is a .toml file (for a groom file use "
+                              f"{', '.join(GROOM_SUFFIXES[:-1])} or {GROOM_SUFFIXES[-1]})", source=str(path))
         try:
             path.stat()
         except OSError as e:  # a symbolic link to nowhere, or a loop of them
@@ -489,6 +491,37 @@ def find_preset(name_or_path: str | os.PathLike[str]) -> Preset:
 
 # --------------------------------------------------------------------------------------------------
 # docs/parameters.md
+
+DEFAULT_PRESET = "default"   # the look a command without a target renders
+
+
+def resolve_params(target: str | None, assignments: Iterable[str] = ()) -> tuple[Params, str]:
+    """Params of a command's target -- a preset (name or file) or a groom file -- with ``--set`` overrides,
+    and a label saying where they came from (for messages). The one way every face (the command line, the
+    exporters, the benches) turns a target into parameters."""
+    values: dict = {}
+    label = "defaults"
+    if target and Path(target).suffix.lower() in GROOM_SUFFIXES:
+        if not Path(target).exists():
+            raise UsageError(f"{target}: no such groom file")
+        values = {"scene.generator": "groom", "scene.groom_file": str(Path(target).resolve())}
+        label = target
+    else:
+        name = target or (DEFAULT_PRESET if DEFAULT_PRESET in bundled_names() else None)
+        if name:
+            preset = find_preset(name)
+            values = groom_relative_to_preset(dict(preset.params.values), preset.path)
+            label = str(preset.path or name)
+    return with_assignments(values, assignments), label
+
+
+def groom_relative_to_preset(values: dict, preset_path: Path | None) -> dict:
+    """A relative ``scene.groom_file`` in a preset names a file beside the preset, wherever vfiber runs."""
+    groom = values.get("scene.groom_file") or ""
+    if groom and preset_path is not None and not Path(groom).is_absolute():
+        values["scene.groom_file"] = str(Path(preset_path).parent / groom)
+    return values
+
 
 _TYPE_NAMES = {int: "integer", float: "number", str: "string", bool: "boolean", tuple: "3 numbers"}
 

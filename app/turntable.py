@@ -66,7 +66,7 @@ def iter_turntable(p: Params, out_dir: str | Path, renderer, scene, *, frames: i
     from PIL import Image
 
     from .atomic import atomic_path
-    from .cli import unpremultiplied_rgba
+    from .output import unpremultiplied_rgba
     from .render.camera import Camera
 
     out = Path(out_dir)

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from PIL import Image
 
 from app.cli import main
+from app.params import ParamError
 
 
 def test_render_writes_png_and_npy(tmp_path, capsys):
@@ -70,3 +73,55 @@ def test_info_reports_fibers_and_constant_bytes(capsys):
     line = lambda text, key: next(x for x in text.splitlines() if x.startswith(key))  # noqa: E731
     assert line(a, "scene GPU bytes") == line(b, "scene GPU bytes")
     assert "86400 exact" in line(a, "fibers  ")
+
+
+SINTEL = Path(__file__).resolve().parents[1].parent / "shared" / "hair-data" / "sintel_hair.tfx"
+
+
+@pytest.mark.skipif(not SINTEL.exists(), reason=f"shared hair data not found at {SINTEL}")
+def test_viewer_and_info_show_one_explicit_figure_on_sintel(capsys):
+    """`vfiber view` and `vfiber info` once showed 150.3 MiB against 56.5 MiB for the same scene: both now
+    show what the explicit baseline allocates (render.explicit.explicit_bytes)."""
+    from types import SimpleNamespace
+
+    from app.presets import resolve_params
+    from app.render.explicit import estimate_bytes
+    from app.scene.generators import build_scene
+    from app.viewer.app import Viewer
+    from app.viewer.state import AppState
+
+    assert main(["info", str(SINTEL)]) == 0
+    line = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("GPU explicit"))
+    info_bytes = int(line.split()[2].replace(",", ""))
+
+    p, _ = resolve_params(str(SINTEL))
+    scene = build_scene(p)
+    state = AppState(params=p)
+    Viewer._update_counts(SimpleNamespace(state=state, scene=scene))   # the viewer's own count, no window
+    assert state.stats.explicit_bytes == info_bytes == estimate_bytes(scene, p)
+    assert info_bytes == 59_207_040   # 1,368 segments x 3,600 fibers x 12 B + 1,368 rows x 80 B (56.5 MiB)
+
+
+def test_set_is_parsed_once_for_every_face(tmp_path):
+    """The command line and the OSL export read --set alike, the bracket-free colour included."""
+    from app.export.osl import load_look
+    from app.presets import resolve_params
+
+    sets = ["look.color=0.8,0.5,0.3", "fibers.rings=12"]
+    cli_params, _ = resolve_params("default", sets)
+    osl_params, _, _ = load_look("default", sets)
+    assert cli_params["look.color"] == osl_params["look.color"] == (0.8, 0.5, 0.3)
+    assert cli_params == osl_params
+    with pytest.raises(ParamError) as cli_err:
+        resolve_params("default", ["look.color=red"])
+    with pytest.raises(ParamError) as osl_err:
+        load_look("default", ["look.color=red"])
+    assert str(cli_err.value) == str(osl_err.value) and str(cli_err.value).startswith("--set: ")
+
+
+def test_budget_and_size_options_read_units(tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        main(["render", "default", "--explicit-budget", "lots", "-o", str(tmp_path / "x.png")])
+    assert "'lots' is not a size" in capsys.readouterr().err
+    assert main(["render", "default", "--size", "0x10", "-o", str(tmp_path / "x.png")]) == 2
+    assert "between 1 and 16384" in capsys.readouterr().err

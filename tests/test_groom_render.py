@@ -272,23 +272,29 @@ def test_cli_renders_and_describes_a_groom_file(tmp_path: Path) -> None:
     for needle in ("strands          100 of 100 in the file", "vertices         1,165",
                    "up axis          file x -> +Z", "segments         3 per guide, 300 containers",
                    "fibers rendered  360,000 = 100 guides x 3,600 per container: 3,600.0 fibers per file strand",
-                   "GPU virtual      57,984 B", "GPU polylines    17,280,000 B"):
+                   "GPU virtual      57,984 B", "GPU explicit     12,984,000 B"):
         assert needle in text, f"{needle!r} not in:\n{text}"
 
 
 @needs_data
-def test_source_info_bytes_match_the_renderers() -> None:
+def test_source_info_bytes_match_the_renderers(ctx) -> None:
+    """The byte lines of ``vfiber info`` are what the two renderers really allocate for this groom."""
+    from app.info import groom_lines
+    from app.render.explicit import ExplicitRenderer
+
     p = groom_params("Curly_100.ply")
     scene = scene_from_groom(p)
-    lines = scene.source_info()
+    lines = groom_lines(scene)
     virtual = next(ln for ln in lines if ln.startswith("GPU virtual"))
     assert f"{scene_gpu_bytes(scene):,} B" in virtual
+    explicit = ExplicitRenderer(ctx)
     try:
-        from app.render import explicit
-    except ImportError:
-        return
-    line = next(ln for ln in lines if ln.startswith("GPU explicit"))
-    assert f"{explicit.estimate_bytes(scene, p):,} B" in line
+        explicit.set_scene(scene, p)
+        line = next(ln for ln in lines if ln.startswith("GPU explicit"))
+        assert f" {explicit.gpu_bytes:,} B" in line
+    finally:
+        explicit.release()
+    assert not any(ln.startswith("GPU") for ln in scene.source_info()), "the scene layer knows no GPU bytes"
 
 
 def test_broken_groom_file_is_one_line_on_the_command_line(tmp_path: Path) -> None:

@@ -151,8 +151,8 @@ def test_every_parameter_gets_a_widget_and_a_new_one_would_too():
 
 
 def test_explicit_storage_formula():
-    # 3600 fibers per container x 24 segments x 2 vertices x 16 bytes
-    assert explicit_bytes(3600, 24) == 3600 * 24 * 2 * 16
+    # the explicit baseline's allocation: 3600 fibers per container x 24 segments x 12 bytes + 24 rows x 80
+    assert explicit_bytes(3600, 24) == 3600 * 24 * 12 + 24 * 80
 
 
 # --------------------------------------------------------------------------------------------------

@@ -18,22 +18,10 @@ import sys
 import time
 from pathlib import Path
 
+from ..units import parse_bytes
 from .suites import SUITES, Env
 
 ISOLATED_TIMEOUT_S = 1800
-
-
-def parse_bytes(text: str) -> int:
-    """'1GiB', '512 MiB', '2e9' or a plain integer of bytes."""
-    m = re.fullmatch(r"\s*([0-9.eE+]+)\s*([KMGT]?i?B?)?\s*", text)
-    if not m:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a size: write e.g. 1GiB, 512MiB or 2000000000")
-    unit = (m.group(2) or "").upper().rstrip("B").rstrip("I")
-    scale = {"": 1, "K": 2**10, "M": 2**20, "G": 2**30, "T": 2**40}[unit]
-    try:
-        return int(float(m.group(1)) * scale)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a size") from None
 
 
 def build_parser() -> argparse.ArgumentParser:

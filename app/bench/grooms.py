@@ -69,11 +69,11 @@ class Subject:
 def load_scene(name: str, size) -> tuple[Params, Scene, Camera]:
     """The default preset, a shared groom file (one container per strand, as ``vfiber`` loads it), or the
     thesis's Table 4 scene ``TABLE4.format(n=...)`` with the containers suite's fixed camera."""
-    from ..cli import resolve_params
+    from ..presets import resolve_params
     from ..scene.generators import build_scene
 
     if name.startswith("Table 4"):
-        from .suites import overlapping_scene
+        from .scenes import overlapping_scene
 
         return overlapping_scene(int(name.split()[3]), 360)
     target = None if name == DEFAULT else str(HAIR_DATA / name)

@@ -177,7 +177,7 @@ def judge(ref_frame, frame) -> Row:
 
 
 def run(env, cfg: dict, variants: dict[str, list[str]] | None = None) -> list[Row]:
-    from ..cli import resolve_params
+    from ..presets import resolve_params
     from ..render.camera import Camera
     from ..render.explicit import ExplicitRenderer
     from ..render.renderer import Renderer

@@ -428,7 +428,9 @@ def make_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    from app.cli import UsageError, parse_size, resolve_params
+    from app.errors import UsageError
+    from app.presets import resolve_params
+    from app.units import parse_size
 
     from . import blender as B
 

@@ -165,6 +165,8 @@ from typing import Any, Iterable, Mapping, Sequence
 
 import numpy as np
 
+from app.errors import VfiberError
+
 __all__ = [
     "BlenderUnavailable", "OSLCompileError", "OSLQueryError", "BlenderRenderError",
     "blender_available", "compile_osl", "query_osl", "render_cylinders_with_osl",
@@ -177,11 +179,11 @@ _FD_LOCK = threading.Lock()
 DEFAULT_ATTRIBUTES = ("UVMap", "vf_radius", "vf_length", "vf_index", "generated")
 
 
-class BlenderUnavailable(RuntimeError):
+class BlenderUnavailable(VfiberError, RuntimeError):
     """``bpy`` cannot be imported (or its Cycles lacks OSL)."""
 
 
-class OSLCompileError(RuntimeError):
+class OSLCompileError(VfiberError, RuntimeError):
     """The OSL compiler rejected a shader. ``messages``: the compiler's output lines; ``lines``: the source line
     numbers it names; ``path``: the source file."""
 
@@ -193,11 +195,11 @@ class OSLCompileError(RuntimeError):
         super().__init__(f"OSL compilation of {self.path} failed:\n{body}")
 
 
-class OSLQueryError(RuntimeError):
+class OSLQueryError(VfiberError, RuntimeError):
     """oslquery could not read a compiled shader."""
 
 
-class BlenderRenderError(RuntimeError):
+class BlenderRenderError(VfiberError, RuntimeError):
     """The Cycles render failed; the message carries the tail of Blender's output."""
 
 

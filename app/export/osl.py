@@ -57,7 +57,9 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from app.atomic import atomic_write_text
-from app.params import BY_KEY, ParamError, Params, parse_assignment
+from app.errors import UsageError
+from app.params import BY_KEY, Params, with_assignments
+from app.scene.grooms import GROOM_SUFFIXES
 
 from . import osl_source as _src
 from .osl_strings import osl_comment, osl_identifier, osl_string_literal
@@ -320,7 +322,6 @@ def export_params(params: Params, path: str | Path, name: str | None = None,
 
 
 def _usage_error(message: str) -> Exception:
-    from app.cli import UsageError
     return UsageError(message)
 
 
@@ -350,24 +351,13 @@ def load_look(target: str, assignments: Sequence[str] = ()) -> tuple[Params, str
     from app.presets import find_preset
 
     preset = find_preset(target)
-    values = dict(preset.params.values)
-    for text in assignments:
-        key, value = parse_assignment(text)
-        values[key] = value
-    try:
-        params = Params(values)
-    except ParamError as e:
-        if assignments and e.source is None:
-            raise ParamError(e.bare, key=e.key, source="--set") from None
-        raise
+    params = with_assignments(preset.params.values, assignments)
     name = preset.path.stem if preset.path is not None else preset.name
     return params, name, preset.description
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = make_parser().parse_args(list(sys.argv[1:] if argv is None else argv))
-    from app.cli import GROOM_SUFFIXES
-
     if Path(args.preset).suffix.lower() in GROOM_SUFFIXES:
         raise _usage_error(f"{args.preset} is a groom file: export-osl writes a look's shader for hand-built "
                            f"containers; for the groom's containers use: vfiber export-blend {args.preset} "

@@ -23,6 +23,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, NamedTuple
 
+from ..errors import VfiberError
+
 if TYPE_CHECKING:  # moderngl is imported lazily so that a broken install becomes a GLContextError
     import moderngl
 
@@ -37,7 +39,7 @@ def _install(*packages: str) -> str:
     return f"install {' '.join(packages)} (apt-get install {' '.join(packages)})"
 
 
-class GLContextError(RuntimeError):
+class GLContextError(VfiberError, RuntimeError):
     """No usable OpenGL context; the message is one line and names what to install."""
 
     def __init__(self, message: str, attempts: Sequence[tuple[str, str]] = ()) -> None:

@@ -30,6 +30,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from ..errors import VfiberError
+
 if TYPE_CHECKING:
     import moderngl
 
@@ -59,7 +61,7 @@ _LOCATIONS = (
 )
 
 
-class ShaderError(RuntimeError):
+class ShaderError(VfiberError, RuntimeError):
     """Base for shader source problems; the message names files as glsl/path:line."""
 
 

@@ -21,11 +21,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import VfiberError
+
 ENV_LIGHTS = 8
 GENERATED = ("studio", "sky")
 
 
-class EnvironmentError_(ValueError):
+class EnvironmentError_(VfiberError, ValueError):
     """An environment image that cannot be used; the message names the file."""
 
 

@@ -42,6 +42,7 @@ import moderngl
 import numpy as np
 
 from .. import fibers
+from ..errors import VfiberError
 from ..fibers import MAX_RINGS, fiber_key, key_random
 from ..gl.shaders import ProgramCache
 from ..params import Params
@@ -65,7 +66,7 @@ GEOMETRY_KEYS = ("fibers.rings", "fibers.phi_step", "fibers.phi_increment", "fib
 SHAPE_KEYS = ("shape.ellipsoid", "shape.curl_amplitude", "shape.twist")
 
 
-class ExplicitBudgetError(MemoryError):
+class ExplicitBudgetError(VfiberError, MemoryError):
     """The explicit fibers would need more GPU memory than the budget allows; nothing was allocated."""
 
     def __init__(self, needed: int, budget: int, fibers: int, per_fiber: float):
@@ -99,11 +100,24 @@ class Plan:
 
     @property
     def gpu_bytes(self) -> int:
-        return max(1, self.instances) * INSTANCE_BYTES + max(1, self.rows) * ROW_BYTES
+        return explicit_bytes(self.fibers_per_container, self.rows)
 
     @property
     def bytes_per_fiber(self) -> float:
         return self.gpu_bytes / max(1, self.fibers)
+
+
+def explicit_bytes(fibers_per_container: int, n_segments: int) -> int:
+    """GPU bytes ``ExplicitRenderer.set_scene`` allocates for these fibers: one instance per fiber per
+    container segment and each segment's row once (at least one of each: a GL buffer cannot be empty). The
+    one formula for "explicit bytes": ``vfiber info``, the viewer and the budget all use it."""
+    return (max(1, int(n_segments) * int(fibers_per_container)) * INSTANCE_BYTES
+            + max(1, int(n_segments)) * ROW_BYTES)
+
+
+EXPLICIT_FORMULA = (f"explicit = fibers per container x container segments x {INSTANCE_BYTES} bytes + container "
+                    f"segments x {ROW_BYTES} bytes (what the explicit baseline allocates: per fiber per segment "
+                    f"its offset and clip range in half floats, tint and roughness; each segment's row once)")
 
 
 def plan(scene: Scene, p: Params) -> Plan:

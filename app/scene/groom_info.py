@@ -5,26 +5,22 @@ remembers the facts of its source: how many strands and vertices the file held, 
 and why, which axis was taken as up and why, how the guides were made. ``source_info()`` turns those facts
 and the parameters the scene was built with into the lines ``vfiber info`` prints after its own.
 
-The byte comparison needs the renderers' sizes, so this one module reaches from the scene into
-``app.render`` -- lazily, inside :func:`gpu_bytes`, for reporting only; nothing on the path from parameters to
-image goes through here.
+The GPU byte lines are the renderers' figures, which the scene layer cannot know (it sits before the
+renderer): ``app.info`` computes them and hands them in.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..params import Params
-from ..units import human_bytes
 from .containers import Scene
 
-POLYLINE_VERTEX_BYTES = 12
-"""One float32 xyz vertex: the plainest explicit store, every fiber a polyline through its guide's joints."""
-
-_W = 17  # label column width, as in ``app.cli.cmd_info``
+_W = 17  # label column width, as in ``app.info.info_lines``
 
 
 @dataclass
@@ -63,50 +59,19 @@ class GroomScene(Scene):
     source: GroomSource | None = None
     params: Params | None = None
 
-    def source_info(self, p: Params | None = None) -> list[str]:
-        """Lines for ``vfiber info``; fiber counts and bytes follow ``p`` (default: the build parameters),
-        so a viewer that changes ``fibers.*`` without rebuilding the scene can pass its current ones."""
-        return source_info(self, p or self.params or Params({}))
-
-
-def gpu_bytes(scene: Scene, p: Params) -> dict[str, tuple[int, str]]:
-    """GPU bytes of the virtual scene and of explicit stores of the same fibers, each with its formula.
-
-    ``virtual``: what ``Renderer.set_scene`` allocates (container segments plus the proxy rectangle).
-    ``explicit``: ``app.render.explicit.estimate_bytes`` -- the explicit baseline's own allocation for
-    exactly these fibers -- when that module is importable. ``polylines``: every fiber as a float32 xyz
-    polyline through its guide's joints, the plainest explicit store (no tangents, widths or colours, so a
-    real one is larger still).
-    """
-    from ..fibers import fiber_count
-
-    try:
-        from ..render.renderer import scene_gpu_bytes
-        virtual = (scene_gpu_bytes(scene), "container segments + their hierarchy + proxy rectangle (Renderer.set_scene)")
-    except ImportError:
-        virtual = (scene.nbytes, "container segments")
-    _, fibers = fiber_count(p, scene.n_guides)
-    joints = scene.n_segments // max(scene.n_guides, 1) + 1     # vertices per fiber polyline
-    out = {"virtual": virtual,
-           "polylines": (fibers * joints * POLYLINE_VERTEX_BYTES,
-                         f"{fibers:,} fibers x {joints} vertices x {POLYLINE_VERTEX_BYTES} B (float32 xyz)")}
-    try:
-        from ..render import explicit
-        pl = explicit.plan(scene, p)
-        out["explicit"] = (int(explicit.estimate_bytes(scene, p)),
-                           f"ExplicitRenderer: {explicit.INSTANCE_BYTES} B per fiber per segment "
-                           f"({pl.instances:,}) + {explicit.ROW_BYTES} B per segment")
-    except (ImportError, AttributeError):   # the explicit baseline is optional here
-        pass
-    return out
+    def source_info(self, p: Params | None = None, gpu_lines: Sequence[str] = ()) -> list[str]:
+        """Lines for ``vfiber info``; fiber counts follow ``p`` (default: the build parameters), so a viewer
+        that changes ``fibers.*`` without rebuilding the scene can pass its current ones. ``gpu_lines`` (from
+        ``app.info.gpu_lines``) go after the fiber count."""
+        return source_info(self, p or self.params or Params({}), gpu_lines)
 
 
 def _count(d: dict[str, int]) -> str:
     return ", ".join(f"{n:,} {why}" for why, n in d.items()) if d else "none"
 
 
-def source_info(scene: Scene, p: Params) -> list[str]:
-    """Lines for ``vfiber info``: the file, what was kept, orientation, guides, fibers and bytes."""
+def source_info(scene: Scene, p: Params, gpu_lines: Sequence[str] = ()) -> list[str]:
+    """Lines for ``vfiber info``: the file, what was kept, orientation, guides, fibers, then ``gpu_lines``."""
     from ..fibers import fiber_count, ring_layout
 
     s: GroomSource = scene.source
@@ -142,13 +107,7 @@ def source_info(scene: Scene, p: Params) -> list[str]:
     per_container = ring_layout(p).fibers_per_container
     lines.append(f"{'fibers rendered':<{_W}}{fibers:,} = {scene.n_guides:,} guides x {per_container:,} per "
                  f"container: {fibers / max(s.strands, 1):,.1f} fibers per file strand")
-    sizes = gpu_bytes(scene, p)
-    v = sizes["virtual"][0]
-    lines.append(f"{'GPU virtual':<{_W}}{v:,} B ({human_bytes(v)}): {sizes['virtual'][1]}")
-    for key, label in (("explicit", "GPU explicit"), ("polylines", "GPU polylines")):
-        if key in sizes:
-            b, how = sizes[key]
-            lines.append(f"{label:<{_W}}{b:,} B ({human_bytes(b)}), {b / max(v, 1):,.0f}x virtual: {how}")
+    lines += gpu_lines
     if s.seconds:
         lines.append(f"{'build time':<{_W}}" + ", ".join(f"{k} {t:.3f} s" for k, t in s.seconds.items()))
     for w in s.warnings:

@@ -19,6 +19,7 @@ from imgui_bundle import imgui
 from ..params import BY_KEY, SPEC, Param, max_fiber_radius
 from ..presets import bundled_names, presets_dir
 from ..render.budget import _duration
+from ..scene.grooms import GROOM_SUFFIXES
 from ..units import human_bytes
 from .display import HEAT_STOPS
 from . import vocabulary as words
@@ -772,7 +773,7 @@ def _path_dialog(state: AppState, scratch: dict[str, Any], name: str, verb: str,
     if list_files:
         folder = Path(scratch[key]).expanduser()
         folder = folder if folder.is_dir() else folder.parent
-        files = sorted(list(folder.glob("*.toml")) + [f for s in (".hair", ".data", ".tfx", ".ply")
+        files = sorted(list(folder.glob("*.toml")) + [f for s in GROOM_SUFFIXES
                                                       for f in folder.glob(f"*{s}")])[:200] if folder.is_dir() else []
         bundled = presets_dir()
         if imgui.begin_child("files", imgui.ImVec2(0, 180 * _ui_scale()), imgui.ChildFlags_.borders):

@@ -59,6 +59,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from ..errors import VfiberError
 from .navigate import Input
 from .state import VIEWS
 
@@ -75,8 +76,8 @@ OPTIONS = {"size", "view", "name", "description", "button", "shift", "ctrl", "fr
 WAIT_FINAL_TIMEOUT_S = 300.0
 
 
-class ScriptError(ValueError):
-    pass
+class ScriptError(VfiberError, ValueError):
+    """A viewer script that cannot run: the message names the script's step and what it expects."""
 
 
 @dataclass

@@ -26,13 +26,15 @@ from typing import Any
 
 from ..params import BY_KEY, SPEC, ParamError, Params, max_fiber_radius, suggest
 from ..presets import PresetError, Preset, find_preset, load_preset, save_preset
+# the explicit baseline's own allocation, so the viewer and `vfiber info` show one figure
+from ..render.explicit import EXPLICIT_FORMULA, explicit_bytes  # noqa: F401 - the viewer's names for them
+from ..scene.grooms import GROOM_SUFFIXES
 
 VIEWS: tuple[str, ...] = ("shaded", "fiber ids", "rings", "normals", "depth", "heat map", "proxies")
 INTERACTIVE_SCALES: tuple[str, ...] = ("25%", "50%", "75%", "100%", "auto")
 INTERACTIVE_MODES: tuple[str, ...] = ("fast", "final mode")
 FRAME_PATHS: tuple[str, ...] = ("direct", "readback")
 TURNTABLE_TURNS: tuple[str, ...] = ("camera", "lights")
-GROOM_SUFFIXES: tuple[str, ...] = (".hair", ".data", ".tfx", ".ply")
 UNDO_DEPTH = 200
 
 
@@ -107,14 +109,6 @@ class Stats:
     estimate_seconds: float = 0.0
     gl_renderer: str = ""
     gl_error: str = "GL_NO_ERROR"
-
-
-EXPLICIT_FORMULA = ("explicit = fibers per container x container segments x 2 vertices x 16 bytes "
-                    "(float32 xyz + radius per vertex, one line segment per fiber per container segment)")
-
-
-def explicit_bytes(fibers_per_container: int, n_segments: int) -> int:
-    return int(fibers_per_container) * int(n_segments) * 2 * 16
 
 
 @dataclass

@@ -23,11 +23,11 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 from app.gl.context import create_headless  # noqa: E402
+from app.info import gpu_bytes  # noqa: E402
 from app.params import Params  # noqa: E402
 from app.render.camera import Camera  # noqa: E402
 from app.render.renderer import Renderer  # noqa: E402
 from app.scene.generators import build_scene  # noqa: E402
-from app.scene.groom_info import gpu_bytes  # noqa: E402
 from app.scene.grooms import load_groom, scene_from_groom  # noqa: E402
 from tests.test_groom_render import DATA, coverage, groom_params  # noqa: E402
 
@@ -89,6 +89,10 @@ def main(names: list[str]) -> None:
         sizes = gpu_bytes(scene, p)
         from app import reference
         fibers = reference.fiber_count(p, scene.n_guides)[1]
+        # for the prose only, not a figure vfiber shows: the plainest explicit store, every fiber a float32
+        # xyz polyline through its guide's joints (no width, tangent or colour)
+        joints = scene.n_segments // max(scene.n_guides, 1) + 1
+        sizes["polylines"] = (fibers * joints * 12, "float32 xyz polylines")
         rows.append({
             "config": stem, "file": name, "cluster": src.cluster, "strands": src.strands, "vertices": src.vertices,
             "guides": scene.n_guides, "segments": src.segments, "native": src.native, "containers": scene.n_segments,

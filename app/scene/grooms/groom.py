@@ -8,8 +8,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ...errors import VfiberError
 
-class GroomError(ValueError):
+
+class GroomError(VfiberError, ValueError):
     """A groom file is unusable: the message starts with the file's name and says what is wrong."""
 
 
