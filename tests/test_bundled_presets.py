@@ -23,6 +23,7 @@ from app.render.camera import Camera
 from app.render.debug_views import ring_image
 from app.render.renderer import is_shaped
 from app.scene.generators import build_scene
+from tests.support.goldens import check_golden, require_llvmpipe
 
 ROOT = Path(__file__).resolve().parents[1]
 GOLDENS = Path(__file__).parent / "goldens" / "presets"
@@ -110,10 +111,6 @@ def test_gallery_shows_every_preset():
             assert (GALLERY.parent / rel).is_file(), f"{GALLERY.name}: {rel} does not exist"
 
 
-def _mesa_version(gl) -> str:
-    return gl.version.split("Mesa")[-1].strip() if "Mesa" in gl.version else gl.version
-
-
 @pytest.mark.parametrize("name", NAMES)
 def test_thumbnail_shows_fibers_and_matches_golden(gl, renderer, regen_goldens, name):
     p = PRESETS[name].params
@@ -129,31 +126,7 @@ def test_thumbnail_shows_fibers_and_matches_golden(gl, renderer, regen_goldens, 
     stands_out = (np.abs(frame.color[frame.hit].astype(int) - bg).max(-1) > 8).mean()
     assert stands_out > 0.5, f"{name}: the fibers are hard to tell from the background"
 
-    if "llvmpipe" not in gl.renderer:
-        pytest.skip(f"goldens are recorded on llvmpipe; this is {gl.renderer}")
+    require_llvmpipe(gl)
     img = ring_image(frame.ids, p["fibers.rings"])
-    path = GOLDENS / f"{name}.png"
-    meta_path = GOLDENS / "meta.json"
-    meta = json.loads(meta_path.read_text()) if meta_path.exists() else {}
-    if regen_goldens or not path.exists():
-        GOLDENS.mkdir(parents=True, exist_ok=True)
-        Image.fromarray(img).save(path)
-        meta[name] = {"mesa": _mesa_version(gl), "renderer": gl.renderer, "size": list(THUMB),
-                      "image": "ring"}
-        meta_path.write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
-        if not regen_goldens:
-            pytest.skip(f"recorded a new golden {path.name}; run again to compare")
-        return
-    want = np.asarray(Image.open(path).convert("RGB"))
-    assert want.shape == img.shape, f"{path.name} is {want.shape[1]}x{want.shape[0]}; run --regen-goldens"
-    diff = np.abs(want.astype(int) - img.astype(int)).max(-1)
-    bad = (diff > 8).mean()
-    if bad > TOLERANCE_FOR.get(name, TOLERANCE):
-        FAILURES.mkdir(exist_ok=True)
-        Image.fromarray(img).save(FAILURES / f"preset-{name}.got.png")
-        Image.fromarray(want).save(FAILURES / f"preset-{name}.want.png")
-        Image.fromarray(np.clip(diff * 8, 0, 255).astype(np.uint8)).save(FAILURES / f"preset-{name}.diff.png")
-        recorded = meta.get(name, {}).get("mesa", "?")
-        pytest.fail(f"{name}: {bad:.3%} of the ring image differs (recorded on Mesa {recorded}, now "
-                    f"{_mesa_version(gl)}); see tests/_failures/preset-{name}.*.png, or --regen-goldens "
-                    "if the change is intended")
+    check_golden(gl, img, GOLDENS / f"{name}.png", TOLERANCE_FOR.get(name, TOLERANCE), regen_goldens,
+                 f"preset-{name}", meta_extra={"size": list(THUMB), "image": "ring"})

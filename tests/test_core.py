@@ -14,6 +14,7 @@ from PIL import Image
 from app.gl.shaders import ProgramCache, ShaderCompileError, glsl_root
 from app.render.renderer import Renderer, scene_gpu_bytes
 from tests.helpers import setup
+from tests.support.goldens import check_golden, require_llvmpipe
 
 SIZE = (160, 96)
 GOLDENS = Path(__file__).parent / "goldens"
@@ -104,35 +105,10 @@ GOLDEN_SCENES = {
 TOLERANCE = {"carpet-exact": 0.002, "single-side": 0.002, "bent-tapered": 0.002}
 
 
-def _mesa_version(gl) -> str:
-    return gl.version.split("Mesa")[-1].strip() if "Mesa" in gl.version else gl.version
-
-
 @pytest.mark.parametrize("name", sorted(GOLDEN_SCENES))
 def test_goldens(gl, renderer, regen_goldens, name):
-    if "llvmpipe" not in gl.renderer:
-        pytest.skip(f"goldens are recorded on llvmpipe; this is {gl.renderer}")
+    require_llvmpipe(gl)
     values, camera = GOLDEN_SCENES[name]
     p, scene, cam = setup(renderer, values, camera)
     img = renderer.render(p, cam, (240, 144)).color
-    path = GOLDENS / f"{name}.png"
-    meta_path = GOLDENS / "meta.json"
-    meta = json.loads(meta_path.read_text()) if meta_path.exists() else {}
-    if regen_goldens or not path.exists():
-        Image.fromarray(img).save(path)
-        meta[name] = {"mesa": _mesa_version(gl), "renderer": gl.renderer}
-        meta_path.write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
-        if not regen_goldens:
-            pytest.skip(f"recorded a new golden {path.name}; run again to compare")
-        return
-    want = np.asarray(Image.open(path).convert("RGB"))
-    diff = np.abs(want.astype(int) - img.astype(int)).max(-1)
-    bad = (diff > 8).mean()
-    if bad > TOLERANCE[name]:
-        out = Path(__file__).parent / "_failures"
-        out.mkdir(exist_ok=True)
-        Image.fromarray(img).save(out / f"{name}.got.png")
-        Image.fromarray(np.clip(diff * 8, 0, 255).astype(np.uint8)).save(out / f"{name}.diff.png")
-        recorded = meta.get(name, {}).get("mesa", "?")
-        pytest.fail(f"{name}: {bad:.3%} of pixels differ (recorded on Mesa {recorded}, now "
-                    f"{_mesa_version(gl)}); see tests/_failures/{name}.*.png, or --regen-goldens")
+    check_golden(gl, img, GOLDENS / f"{name}.png", TOLERANCE[name], regen_goldens, name)
