@@ -24,10 +24,9 @@ from app.render.debug_views import ring_image
 from app.render.renderer import is_shaped
 from app.scene.generators import build_scene
 from tests.support.goldens import check_golden, require_llvmpipe
+from tests.support.paths import ROOT, GOLDENS, FAILURES
 
-ROOT = Path(__file__).resolve().parents[1]
-GOLDENS = Path(__file__).parent / "goldens" / "presets"
-FAILURES = Path(__file__).parent / "_failures"
+GOLDENS = GOLDENS / "presets"
 GALLERY = ROOT / "docs" / "presets.md"
 THUMB = (128, 72)
 HIT_FLOOR = 0.05       # fraction of a thumbnail that must be fibers: less means the camera lost the look

@@ -10,6 +10,7 @@ from PIL import Image
 
 from app.cli import main
 from app.params import ParamError
+from tests.support.paths import HAIR_DATA
 
 
 def test_render_writes_png_and_npy(tmp_path, capsys):
@@ -75,7 +76,7 @@ def test_info_reports_fibers_and_constant_bytes(capsys):
     assert "86400 exact" in line(a, "fibers  ")
 
 
-SINTEL = Path(__file__).resolve().parents[1].parent / "shared" / "hair-data" / "sintel_hair.tfx"
+SINTEL = HAIR_DATA / "sintel_hair.tfx"
 
 
 @pytest.mark.skipif(not SINTEL.exists(), reason=f"shared hair data not found at {SINTEL}")

@@ -12,8 +12,9 @@ import pytest
 
 from app.cli import describe_error
 from app.errors import UsageError, VfiberError
+from tests.support.paths import ROOT
 
-APP = Path(__file__).resolve().parents[1] / "app"
+APP = ROOT / "app"
 # Exception classes of app/ that are not for a person, each with the reason. Empty today.
 NOT_FOR_PEOPLE: dict[str, str] = {}
 

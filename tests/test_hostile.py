@@ -23,9 +23,9 @@ from hypothesis import strategies as st
 from app.export import osl as X
 from app.export.osl_strings import osl_comment, osl_identifier, osl_string_literal
 from app.params import Params
+from tests.support.paths import ROOT
 
 HAVE_BPY = importlib.util.find_spec("bpy") is not None
-ROOT = Path(__file__).resolve().parents[1]
 FUZZ = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 
 # The OSL injection of the hostile run: a backslash + CR splices the line, the quote closes the label and

@@ -19,8 +19,9 @@ import ast
 from pathlib import Path
 
 import pytest
+from tests.support.paths import ROOT
 
-APP = Path(__file__).resolve().parents[1] / "app"
+APP = ROOT / "app"
 
 
 def module_name(path: Path, root: Path) -> str:

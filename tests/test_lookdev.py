@@ -16,8 +16,8 @@ from PIL import Image
 
 from app.cli import main
 from app.params import SPEC, ParamError, Params
+from tests.support.paths import ROOT
 
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def _err_line(capsys) -> str:

@@ -8,11 +8,6 @@ import sys
 from pathlib import Path
 from typing import Any
 
-try:
-    import app  # noqa: F401
-except ModuleNotFoundError:  # plain `pytest` from a checkout that is not pip-installed
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
 import pytest
 import tomli_w
 import tomllib
@@ -23,6 +18,7 @@ from app import presets
 from app.params import BY_KEY, GROUPS, SPEC, Param, ParamError, Params, max_fiber_radius
 from app.presets import (MIGRATIONS, PRESET_VERSION, Preset, PresetError, bundled_presets, dumps_preset,
                          find_preset, load_preset, migrate_1_to_2, parameters_markdown, save_preset)
+from tests.support.paths import ROOT
 
 FAST = settings(deadline=None, suppress_health_check=[HealthCheck.too_slow])
 

@@ -3,7 +3,7 @@
 ``osl/common/hash.osl`` is the twin of ``glsl/common/hash.glsl``, ``osl/fibers/traverse.osl`` of
 ``glsl/fibers/traverse.glsl``, and so on: each GLSL function ``name`` of the fiber model has an OSL function
 ``vf_name`` in the mirrored file, or the OSL file says in a ``// no-twin: name (why)`` line why it has none;
-an OSL function with no GLSL twin is listed in an ``// osl-only: vf_name`` line. ``tests/test_osl_twins.py``
+an OSL function with no GLSL twin is listed in an ``// osl-only: vf_name`` line. ``tests/export/test_osl_twins.py``
 fails when a function is on neither side, so whoever changes a GLSL function sees which OSL function to
 change with it. Differences the language forces are said in each file's header: OSL has no ``vec2`` (pairs
 of floats), no ``uint`` (hash.osl), no infinity arithmetic (``x / 0`` is 0), functions cannot read shader

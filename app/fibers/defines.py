@@ -4,7 +4,7 @@ The shaders do not spell these numbers: a GLSL program that uses them is compile
 (app/render/renderer.py: model_defines; the explicit baseline), and the OSL export puts ``osl_header()`` in
 front of the library (app/export/osl_source.py). glsl/common/hash.glsl and glsl/fibers/layout.glsl keep
 ``#ifndef`` fallbacks only so that a library file compiles alone in a test harness;
-tests/test_fibers_model.py holds those fallbacks equal to these values.
+tests/fibers/test_model.py holds those fallbacks equal to these values.
 """
 
 from __future__ import annotations

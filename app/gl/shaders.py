@@ -6,7 +6,7 @@ A file is expanded at its first include; later includes of it are dropped. An in
 ``#if``/``#ifdef``/``#ifndef`` block (other than the file's own include guard) may be compiled out, so it
 does not count as the first: the file is expanded again at its next include and its include guard keeps
 the preprocessor from seeing it twice (a file included under ``#if`` must have one; every library file
-has one: tests/test_glsl_includes.py). Directives inside block comments are still seen: keep
+has one: tests/gl/test_glsl_includes.py). Directives inside block comments are still seen: keep
 ``#include`` out of comments.
 
 Mesa reports ``0:LINE(COL): error: ...`` and drops source-string ids, so ``#line`` cannot say which file

@@ -772,7 +772,7 @@ def is_shaped(p: Params) -> bool:
 
 def clear_targets(fbo: moderngl.Framebuffer) -> None:
     """Zero every colour attachment and set depth to 1. moderngl clears each attachment with the
-    glClearBuffer call of its type (uiv for the integer ids, fv for the others: tests/test_gl_infra.py), so
+    glClearBuffer call of its type (uiv for the integer ids, fv for the others: tests/gl/test_gl_infra.py), so
     the integer target is cleared as GL defines, where glClear would leave it undefined."""
     fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
 

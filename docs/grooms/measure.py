@@ -5,7 +5,7 @@ ratios compare: load time, scene build time, containers, fibers, GPU bytes (virt
 plain polylines), shader work per pixel (container fragments, loop iterations:
 the same on any machine), milliseconds per 1280x720 exact-mode frame (median of 5 after one warm-up, ctx.finish()
 and the colour read-back inside the clock), and agreement with the original strands at 320x180 (see
-tests/test_groom_render.py). Writes docs/grooms/<stem>[-c<N>].png and docs/grooms/numbers.json.
+tests/render/test_groom_render.py). Writes docs/grooms/<stem>[-c<N>].png and docs/grooms/numbers.json.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from app.render.camera import Camera  # noqa: E402
 from app.render.renderer import Renderer  # noqa: E402
 from app.scene.generators import build_scene  # noqa: E402
 from app.scene.grooms import load_groom, scene_from_groom  # noqa: E402
-from tests.test_groom_render import DATA, coverage, groom_params  # noqa: E402
+from tests.render.test_groom_render import DATA, coverage, groom_params  # noqa: E402
 
 OUT = Path(__file__).resolve().parent
 SIZE = (1280, 720)

@@ -12,7 +12,7 @@
 #define COMMON_HASH_GLSL
 
 // The channels are app/fibers/hash.py's CHANNELS, injected as defines (app.fibers.glsl_defines). These
-// fallbacks only let the file compile alone (a test harness); tests/test_fibers_model.py holds them equal.
+// fallbacks only let the file compile alone (a test harness); tests/fibers/test_model.py holds them equal.
 #ifndef CH_RADIAL
 #define CH_RADIAL 0u
 #define CH_ANGULAR 1u

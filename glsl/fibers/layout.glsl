@@ -12,7 +12,7 @@
 #define FIBERS_LAYOUT_GLSL
 
 // MAX_RINGS is app/fibers/limits.py's, injected (app.fibers.glsl_defines); the fallback lets the file
-// compile alone, and tests/test_fibers_model.py holds it equal.
+// compile alone, and tests/fibers/test_model.py holds it equal.
 #ifndef MAX_RINGS
 #define MAX_RINGS 64
 #endif

@@ -32,7 +32,7 @@ uniform int uCurlPattern;
 
 const float TWO_PI = 6.28318530718;
 
-// fallbacks so that the file compiles alone; tests/test_fibers_model.py holds them equal to app.fibers
+// fallbacks so that the file compiles alone; tests/fibers/test_model.py holds them equal to app.fibers
 #ifndef TWIST_UNIFORM
 #define TWIST_UNIFORM 0
 #define TWIST_RAMPED 1

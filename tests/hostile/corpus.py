@@ -25,10 +25,10 @@ from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
+from tests.support.paths import ROOT
 
 CASE_TIMEOUT_S = 60
 COLUMNS = ("tried", "clean error", "ok", "traceback", "hang", "crash", "wrong acceptance", "data lost")
-ROOT = Path(__file__).resolve().parents[2]
 
 
 @dataclass

@@ -13,8 +13,8 @@ import re
 from pathlib import Path
 
 import pytest
+from tests.support.paths import ROOT
 
-ROOT = Path(__file__).resolve().parents[1]
 GLSL = ROOT / "glsl"
 OSL = ROOT / "osl"
 MODEL = ("common", "geometry", "fibers")   # the fiber model; stages/ and shading/ differ by design (Cycles closures)

@@ -9,7 +9,7 @@ from app import reference
 from app.params import Params
 from app.render.camera import Camera
 from app.scene.containers import Scene, orthonormal_x
-from tests.helpers import gpu_ids, reference_ids, setup
+from tests.support.ids import gpu_ids, reference_ids, setup
 
 SIZE = (128, 96)
 ONE = {"scene.generator": "single", "scene.radius": 1.0, "scene.length": 4.0, "fibers.rings": 5,

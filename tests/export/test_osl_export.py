@@ -15,11 +15,6 @@ import re
 import sys
 from pathlib import Path
 
-try:
-    import app  # noqa: F401
-except ModuleNotFoundError:  # plain `pytest` from a checkout that is not pip-installed
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
 import numpy as np
 import pytest
 
@@ -519,6 +514,7 @@ def test_closures_render_in_cycles(cycles, tmp_path, model, mode):
 # text into OSL source (app/export/osl_strings.py)
 
 from app.export.osl_strings import osl_identifier, osl_string_literal  # noqa: E402
+from tests.support.paths import ROOT
 
 HOSTILE = ["plain", 'a "quote" and \\ back\\slash', "line\nbreak\rcr\ttab", "nul\0here", "tri??=graph ??/ end???",
            "bell\x07 del\x7f", "unicode é ✓", '*/ // #define X', '"; } shader evil() { //', "\\"]

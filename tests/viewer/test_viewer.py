@@ -23,8 +23,8 @@ from app.presets import load_preset, save_preset
 from app.viewer.navigate import CameraController, Input, make_camera
 from app.viewer.script import PREFIX, ScriptError, parse_script
 from app.viewer.state import AppState, explicit_bytes
+from tests.support.paths import ROOT, HAIR_DATA
 
-ROOT = Path(__file__).resolve().parents[1]
 XVFB = shutil.which("xvfb-run")
 needs_xvfb = pytest.mark.skipif(XVFB is None, reason="xvfb-run not found: apt-get install xvfb xauth "
                                                      "(the viewer needs an X display for its glfw window)")
@@ -587,7 +587,7 @@ def test_strips_are_sized_by_where_the_containers_are(ctx, renderer):
     assert np.corrcoef(weights, fragments)[0, 1] > 0.8
 
 
-SINTEL = ROOT / ".." / "shared" / "hair-data" / "sintel_hair.tfx"
+SINTEL = HAIR_DATA / "sintel_hair.tfx"
 
 
 @needs_xvfb
@@ -659,7 +659,7 @@ def test_ab_compare_turntable_menu_and_the_panel_for_a_groom(tmp_path):
     """Pin A, change the look: the split shows A left and B right with the same camera; 'A only' shows
     the pinned look; File > Render turntable writes RGBA frames; a groom hides generator-only controls."""
     t = tmp_path
-    groom = ROOT.parent / "shared" / "hair-data" / "Bangs_100.hair"
+    groom = HAIR_DATA / "Bangs_100.hair"
     steps = [
         {"viewer": {"show_stats": False}},
         {"wait_final": True},

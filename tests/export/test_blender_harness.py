@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 
 from app.export import blender as B
+from tests.support.paths import OSL_FIXTURES
 
-FIX = Path(__file__).parent / "osl_fixtures"
+FIX = OSL_FIXTURES
 
 pytestmark = [
     pytest.mark.blender,

@@ -18,8 +18,8 @@ import pytest
 from app.fibers import osl_header
 from app.gl import shaders
 from app.gl.shaders import STAGE_SUFFIXES, ShaderIncludeError, expand, include_guard, map_log
+from tests.support.paths import ROOT
 
-ROOT = Path(__file__).resolve().parents[1]
 GLSL = ROOT / "glsl"
 OSL = ROOT / "osl"
 OSL_STAGE = "stages/container.osl"   # the shader body: read as text by app/export/osl_source.py, never included

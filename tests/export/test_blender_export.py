@@ -23,9 +23,9 @@ import pytest
 from app import cli
 from app.export import blend as XB
 from app.presets import bundled_presets
+from tests.support.paths import HAIR_DATA, ROOT
 
-ROOT = Path(__file__).resolve().parents[1]
-HAIR = ROOT.parent / "shared" / "hair-data"
+HAIR = HAIR_DATA
 SIZE = "192x108"
 HAS_BPY = importlib.util.find_spec("bpy") is not None
 blender_test = pytest.mark.skipif(not HAS_BPY, reason="bpy is not installed: pip install 'vfiber[blender]' "

@@ -11,11 +11,6 @@ import textwrap
 from collections.abc import Iterator
 from pathlib import Path
 
-try:
-    import app  # noqa: F401
-except ModuleNotFoundError:  # plain `pytest` from a checkout that is not pip-installed
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
 import moderngl
 import numpy as np
 import pytest
@@ -33,9 +28,10 @@ from app.gl.shaders import (
     glslang_path,
     validate_with_glslang,
 )
+from tests.support.paths import ROOT, GLSL_FIXTURES
 
-FIXTURES = Path(__file__).parent / "glsl_fixtures"
-REPO = Path(__file__).resolve().parents[1]
+FIXTURES = GLSL_FIXTURES
+REPO = ROOT
 
 
 def _osmesa_installed() -> bool:

@@ -13,11 +13,11 @@ from PIL import Image
 
 from app.gl.shaders import ProgramCache, ShaderCompileError, glsl_root
 from app.render.renderer import Renderer, scene_gpu_bytes
-from tests.helpers import setup
+from tests.support.ids import setup
 from tests.support.goldens import check_golden, require_llvmpipe
+from tests.support.paths import GOLDENS
 
 SIZE = (160, 96)
-GOLDENS = Path(__file__).parent / "goldens"
 
 
 @pytest.mark.parametrize("a,b", [({"fibers.phi_step": 1.0}, {"fibers.phi_step": 180.0}),

@@ -9,6 +9,7 @@ import pytest
 
 from app import reference
 from app.gl.shaders import ProgramCache, glsl_root
+from tests.support.paths import GLSL_HARNESS
 
 W, H = 64, 32
 
@@ -21,7 +22,7 @@ def values(ctx):
 
     tmp = Path(tempfile.mkdtemp())
     shutil.copytree(glsl_root(), tmp / "glsl")
-    for f in (Path(__file__).parent / "glsl_harness").iterdir():
+    for f in GLSL_HARNESS.iterdir():
         (tmp / "glsl" / f.name).write_text(f.read_text())
     prog = ProgramCache(tmp / "glsl").get(ctx, "fullscreen.vert", "functions.frag")
     prog["uSeed"].value = 1234

@@ -40,9 +40,9 @@ from app.scene.grooms import (
     MAX_TURN_DEG, SEGMENT_TOLERANCE, GroomError, auto_segments, container_rows, groom_scene, joint_turns,
     load_groom, parse_groom, resample_many, scene_from_groom, strands_to_guides,
 )
+from tests.support.paths import ROOT, HAIR_DATA
 
-ROOT = Path(__file__).resolve().parents[1]
-DATA = ROOT.parent / "shared" / "hair-data"
+DATA = HAIR_DATA
 needs_data = pytest.mark.skipif(not DATA.is_dir(), reason=f"shared hair data not found at {DATA}")
 
 SIZE = (256, 144)

@@ -14,8 +14,8 @@ import re
 from pathlib import Path
 
 import pytest
+from tests.support.paths import ROOT
 
-ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "architecture.md"
 
 _TYPES = r"(?:void|bool|int|uint|float|vec[234]|ivec[234]|uvec[234]|mat[234]|[A-Z]\w*)"

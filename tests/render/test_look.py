@@ -7,7 +7,7 @@ import pytest
 
 from app.params import ParamError, Params
 from app.render import look
-from tests.helpers import setup
+from tests.support.ids import setup
 
 
 def test_melanin_matches_cycles_principled_hair():

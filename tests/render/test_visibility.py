@@ -10,11 +10,12 @@ import pytest
 
 from app.render.camera import Camera
 from app.render.renderer import WALK_LAYERS, proxy_layers
-from tests.helpers import gpu_ids, reference_ids, setup
-from tests.test_traversal import SCENES
+from tests.support.ids import gpu_ids, reference_ids, setup
+from tests.render.test_traversal import SCENES
+from tests.support.paths import HAIR_DATA
 
 SIZE = (160, 96)
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "hair-data"
+DATA = HAIR_DATA
 
 SHAPED = [
     ("curled", {"scene.generator": "single", "scene.radius": 1.0, "scene.length": 3.0,

@@ -15,8 +15,8 @@ from app import fibers
 from app.export import osl_source
 from app.gl.shaders import ProgramCache, glsl_root
 from app.params import Params
+from tests.support.paths import ROOT
 
-ROOT = Path(__file__).resolve().parents[1]
 MASK = 0xFFFFFFFF
 
 

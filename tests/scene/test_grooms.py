@@ -23,8 +23,9 @@ from app.scene.grooms import (
     Groom, GroomError, default_radius, load_groom, parse_groom, resample, resample_many, strands_to_guides,
     up_rotation,
 )
+from tests.support.paths import HAIR_DATA
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "hair-data"
+DATA = HAIR_DATA
 needs_data = pytest.mark.skipif(not DATA.is_dir(), reason=f"shared hair data not found at {DATA}")
 
 # name -> (strands, vertices, up axis auto must pick, tips above roots after conversion?)

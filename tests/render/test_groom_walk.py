@@ -21,8 +21,9 @@ from app.cli import resolve_params
 from app.render.bvh import segment_cylinders
 from app.render.camera import Camera
 from app.scene.generators import build_scene
+from tests.support.paths import HAIR_DATA
 
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "hair-data"
+DATA = HAIR_DATA
 needs_data = pytest.mark.skipif(not DATA.is_dir(), reason=f"shared hair data not found at {DATA}")
 GROOMS = ("harolongo.data", "sintel_hair.tfx", "Ratboy_mohawk.tfx")
 SIZE = (320, 180)

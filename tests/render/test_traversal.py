@@ -8,7 +8,7 @@ import pytest
 from app import reference
 from app.params import Params
 from app.render.renderer import BRUTE_CHUNK, LOOP_CAP
-from tests.helpers import gpu_ids, reference_ids, setup
+from tests.support.ids import gpu_ids, reference_ids, setup
 
 SIZE = (160, 96)
 
