@@ -208,7 +208,7 @@ def test_the_production_path_never_imports_the_reference():
     import sys
     code = ("import sys\n"
             "import app.render.renderer, app.render.explicit, app.render.debug_views, app.render.budget\n"
-            "import app.cli, app.viewer.app, app.export.osl, app.export.osl_source, app.scene.groom_info\n"
+            "import app.cli, app.viewer.app, app.export.osl, app.export.osl_source, app.scene.groom_info, app.info\n"
             "import app.scene.grooms, app.scene.generators\n"
             "print('app.fibers' in sys.modules, 'app.reference' in sys.modules)\n")
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
