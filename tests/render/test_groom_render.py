@@ -37,7 +37,7 @@ from app.scene.grooms import build as groom_build
 from app.scene.containers import Scene
 from app.scene.groom_info import GroomScene
 from app.scene.grooms import (
-    MAX_TURN_DEG, SEGMENT_TOLERANCE, GroomError, auto_segments, container_rows, groom_scene, joint_turns,
+    MAX_TURN_DEG, SEGMENT_TOLERANCE, GroomError, auto_segments, groom_scene, joint_turns,
     load_groom, parse_groom, resample_many, scene_from_groom, strands_to_guides,
 )
 from tests.support.paths import ROOT, HAIR_DATA
@@ -315,16 +315,6 @@ def _random_guides(rng: np.random.Generator, s: int, m: int) -> np.ndarray:
     steps[2, 1::2] = -steps[2, 0::2][: len(steps[2, 1::2])]    # exact fold-backs: 180-degree joints
     steps[3] = [0, 0, 1] + 1e-9 * rng.normal(size=(m - 1, 3))  # nearly straight
     return np.concatenate([rng.normal(size=(s, 1, 3)) * 10, steps], axis=1).cumsum(axis=1)
-
-
-@pytest.mark.parametrize("m", [2, 3, 9])
-def test_container_rows_equal_from_polylines(m: int) -> None:
-    rng = np.random.default_rng(m)
-    guides = _random_guides(rng, 40, m)
-    radii = rng.uniform(0.05, 0.5, 40)
-    ref = Scene.from_polylines(list(guides), radii, taper=0.3)
-    rows = container_rows(guides, radii, 0.3, ref.origin).astype(np.float32)
-    np.testing.assert_allclose(rows, ref.segments, rtol=1e-6, atol=1e-6)
 
 
 @needs_data
