@@ -306,16 +306,7 @@ def test_broken_groom_file_is_one_line_on_the_command_line(tmp_path: Path) -> No
 
 
 # --------------------------------------------------------------------------------------------------------
-# Containers built in bulk equal Scene.from_polylines
-
-def _random_guides(rng: np.random.Generator, s: int, m: int) -> np.ndarray:
-    steps = rng.normal(size=(s, m - 1, 3))
-    steps[0] = [0, 0, 1]                                       # axis-aligned
-    steps[1, :, :] = [1, 0, 0]
-    steps[2, 1::2] = -steps[2, 0::2][: len(steps[2, 1::2])]    # exact fold-backs: 180-degree joints
-    steps[3] = [0, 0, 1] + 1e-9 * rng.normal(size=(m - 1, 3))  # nearly straight
-    return np.concatenate([rng.normal(size=(s, 1, 3)) * 10, steps], axis=1).cumsum(axis=1)
-
+# A groom scene equals Scene.from_polylines of its resampled strands
 
 @needs_data
 @pytest.mark.parametrize("name", ["Curly_100.ply", "Ratboy_mohawk.tfx"])
