@@ -448,7 +448,8 @@ def make_parser() -> argparse.ArgumentParser:
     return ap
 
 
-PASS_THROUGH = {"bench": cmd_bench, "export-osl": cmd_export_osl, "export-blend": cmd_export_blend}   # they parse their own options
+# these parse their own options
+PASS_THROUGH = {"bench": cmd_bench, "export-osl": cmd_export_osl, "export-blend": cmd_export_blend}
 
 
 def main(argv: list[str] | None = None) -> int:

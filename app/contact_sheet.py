@@ -17,8 +17,12 @@ import json
 import math
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .params import Params
+
+if TYPE_CHECKING:
+    import numpy as np
 
 LABEL_KEY = "vfiber:labels"
 TILES_KEY = "vfiber:tiles"
@@ -105,7 +109,7 @@ def render_contact_sheet(looks: list[tuple[str, Params]], tile: tuple[int, int],
     return sheet
 
 
-def compose_sheet(tiles: list[tuple[str, "np.ndarray"]], out: str | Path, cols: int | None = None):
+def compose_sheet(tiles: list[tuple[str, np.ndarray]], out: str | Path, cols: int | None = None):
     """Pictures made elsewhere (uint8 RGB, all one size), labelled as ``render_contact_sheet`` labels its
     own, ``cols`` to a row (default: as square as it goes); written atomically to ``out``. For comparisons
     whose tiles do not all come from the virtual renderer (app/bench/looks.py: the strand reference)."""

@@ -35,7 +35,8 @@ import sys
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import Any
+from collections.abc import Callable, Iterable
 
 import tomli_w
 
@@ -118,7 +119,8 @@ _OLD_LOCATION: dict[int, dict[str, str]] = {
 # finding lines: tomllib keeps no positions, so scan the text for ``key =`` inside its ``[table]``
 
 _HEADER = re.compile(r"""^\s*\[\[?\s*([^\[\]#]+?)\s*\]\]?\s*(?:#.*)?$""")  # [table] or [[array]]
-_KEYLINE = re.compile(r"""^\s*((?:[A-Za-z0-9_-]+|"[^"]*"|'[^']*')(?:\s*\.\s*(?:[A-Za-z0-9_-]+|"[^"]*"|'[^']*'))*)\s*=""")
+_KEY_PART = r"""(?:[A-Za-z0-9_-]+|"[^"]*"|'[^']*')"""
+_KEYLINE = re.compile(rf"""^\s*({_KEY_PART}(?:\s*\.\s*{_KEY_PART})*)\s*=""")
 _PART = re.compile(r"""[A-Za-z0-9_-]+|"[^"]*"|'[^']*'""")
 
 

@@ -9,13 +9,10 @@ shaded thumbnails live in the gallery, docs/presets.md.
 
 from __future__ import annotations
 
-import json
 import re
-from pathlib import Path
 
 import numpy as np
 import pytest
-from PIL import Image
 
 from app.cli import main as cli_main
 from app.presets import bundled_names, bundled_presets
@@ -24,7 +21,7 @@ from app.render.debug_views import ring_image
 from app.render.renderer import is_shaped
 from app.scene.generators import build_scene
 from tests.support.goldens import check_golden, require_llvmpipe
-from tests.support.paths import ROOT, GOLDENS, FAILURES
+from tests.support.paths import ROOT, GOLDENS
 
 GOLDENS = GOLDENS / "presets"
 GALLERY = ROOT / "docs" / "presets.md"

@@ -6,7 +6,6 @@ from __future__ import annotations
 import ast
 import builtins
 import importlib
-from pathlib import Path
 
 import pytest
 

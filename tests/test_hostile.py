@@ -10,7 +10,6 @@ from __future__ import annotations
 import importlib.util
 import os
 import re
-import stat
 import subprocess
 import sys
 import warnings
@@ -262,9 +261,9 @@ def test_sigkill_mid_save_loses_nothing_and_leaves_nothing(tmp_path):
 
     path = tmp_path / "look.toml"
     save_preset(path, Params({"fibers.rings": 3}))
-    code = ("import sys; sys.path.insert(0, %r)\nfrom app.presets import save_preset\nfrom app.params import "
-            "Params\nimport itertools\nfor i in itertools.count():\n    save_preset(%r, Params({'fibers.rings': "
-            "1 + i %% 60}))\n" % (str(ROOT), str(path)))
+    code = (f"import sys; sys.path.insert(0, {str(ROOT)!r})\nfrom app.presets import save_preset\n"
+            "from app.params import Params\nimport itertools\nfor i in itertools.count():\n"
+            f"    save_preset({str(path)!r}, Params({{'fibers.rings': 1 + i % 60}}))\n")
     for delay in (0.3, 0.45, 0.6):
         child = subprocess.Popen([sys.executable, "-c", code])
         time.sleep(delay)
@@ -489,7 +488,7 @@ def test_ctrl_c_at_a_terminal_stops_a_render_at_once_and_leaves_nothing(tmp_path
     child = subprocess.Popen(cmd, stdin=terminal, stderr=subprocess.PIPE, text=True, cwd=ROOT,
                              preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.time() + 30
-    while "rendering" not in (line := child.stderr.readline()) and time.time() < deadline:
+    while "rendering" not in child.stderr.readline() and time.time() < deadline:
         pass                                      # the estimate line: the render is under way
     time.sleep(0.5)
     t0 = time.perf_counter()

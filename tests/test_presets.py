@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 import os
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -18,7 +17,6 @@ from app import presets
 from app.params import BY_KEY, GROUPS, SPEC, Param, ParamError, Params, max_fiber_radius
 from app.presets import (MIGRATIONS, PRESET_VERSION, Preset, PresetError, bundled_presets, dumps_preset,
                          find_preset, load_preset, migrate_1_to_2, parameters_markdown, save_preset)
-from tests.support.paths import ROOT
 
 FAST = settings(deadline=None, suppress_health_check=[HealthCheck.too_slow])
 

@@ -414,7 +414,8 @@ def case_grazing(lab: Lab) -> Case:
                 d = rd @ frame_m.T
                 dxy = d[:, :2] / np.linalg.norm(d[:, :2], axis=1, keepdims=True)
                 b = np.abs(o[:, 0] * dxy[:, 1] - o[:, 1] * dxy[:, 0])         # impact parameter / R
-                dist = np.abs((o[:, None, 0] - cx[None]) * dxy[:, None, 1] - (o[:, None, 1] - cy[None]) * dxy[:, None, 0])
+                dist = np.abs((o[:, None, 0] - cx[None]) * dxy[:, None, 1]
+                              - (o[:, None, 1] - cy[None]) * dxy[:, None, 0])
                 margin = np.minimum(np.abs(b - 1.0), np.abs(dist - rf).min(1)).reshape(size[1], size[0])
                 b = b.reshape(size[1], size[0])
                 wrong = (ref[..., 0] > 0) != f.hit
@@ -713,7 +714,8 @@ def case_inside(lab: Lab) -> Case:
     wide = lab.render(carpet, Camera(base.position, base.target, base.fov, 1e-4, 1e6), size)
     depth_order = float(np.any(tight.ids[..., :3] != wide.ids[..., :3], -1).mean())
     rate = bad / max(1, shown_total)
-    return Case(10, "camera inside a container; near 1e-4, far 1e6", rate < 1e-3 and nonfinite == 0 and depth_order < 1e-3,
+    return Case(10, "camera inside a container; near 1e-4, far 1e6",
+                rate < 1e-3 and nonfinite == 0 and depth_order < 1e-3,
                 rate, "hit pixels whose fiber differs from float64", "< 0.1%, no NaN",
                 f"{nonfinite} non-finite pixels; a carpet with near 1e-4 / far 1e6 names another fiber than with "
                 f"tight planes in {_pct(depth_order)} of pixels (logarithmic depth)",
@@ -976,7 +978,8 @@ def case_grid(lab: Lab) -> Case:
         details[f"{key}={value!r}"] = {"differ": int(differ.sum()), "runout": runout, "finite": finite}
         lab.log(f"{key} = {value!r}: {time.perf_counter() - t:.1f} s")
         if differ.any() or runout or not finite or color is None:
-            problems.append(f"{key} = {value!r}: {int(differ.sum())} px exact != brute, {runout} run-outs, finite {finite}")
+            problems.append(f"{key} = {value!r}: {int(differ.sum())} px exact != brute, {runout} run-outs, "
+                            f"finite {finite}")
             images.append((f"12: {key} = {value!r}", mark(id_image(frames['exact'].ids), differ)))
     rows = pairwise_rows()
     single = Scene.from_polylines([np.array([[0, 0, 0], [0, 0, 2.0]])], 1.0)

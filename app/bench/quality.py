@@ -35,7 +35,7 @@ from ..gl.context import create_headless
 from ..params import Params
 from ..presets import find_preset
 from ..render.camera import Camera
-from ..render.debug_views import cost_image, fiber_id_image
+from ..render.debug_views import cost_image
 from ..render.renderer import Renderer
 from ..scene.generators import build_scene
 from .timing import time_frames

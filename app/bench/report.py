@@ -379,7 +379,7 @@ def write_suite(name: str, rows: list[Row], out: Path, machine: Machine | None, 
         parts += ["", looks.NOTES, "", targets_markdown(looks.targets(rows))]
     if name == "memory":
         x = memory_crossover(rows)
-        parts += ["", f"Cross-over (explicit frame time = virtual, exact mode): "
+        parts += ["", "Cross-over (explicit frame time = virtual, exact mode): "
                       + (f"~{x:,.0f} fibers." if x else "none inside the measured range.")]
     paths["md"].write_text("\n".join(parts) + "\n")
     PLOTS[name](rows, paths["png"], machine)

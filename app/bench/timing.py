@@ -195,7 +195,7 @@ def machine_info(gl_renderer: str = "", gl_version: str = "") -> Machine:
     except AttributeError:
         usable = os.cpu_count() or 1
     return Machine(
-        date=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"),
+        date=_dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
         commit=_git("rev-parse", "HEAD") or "unknown",
         dirty=bool(_git("status", "--porcelain", "--untracked-files=no")),
         host=platform.node(), os=f"{platform.system()} {platform.release()}", cpu=_cpu_model(),

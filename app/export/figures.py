@@ -130,8 +130,9 @@ def cmd_agreement(a) -> int:
     print("|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         bias = ", ".join(f"{b:+.0f}" for b in r["colour_bias"])
-        print(f"| {r['name']} | {r['segments']} | {r['coverage']:.2%} | {r['same_id']:.2%} | {r['colour_diff']:.1f} | "
-              f"{bias} | {r['export_s']:.1f} s | {r['ids_s']:.1f} s / {r['shaded_s']:.1f} s | {r['peak_mib']:.0f} MiB |")
+        print(f"| {r['name']} | {r['segments']} | {r['coverage']:.2%} | {r['same_id']:.2%} | "
+              f"{r['colour_diff']:.1f} | {bias} | {r['export_s']:.1f} s | "
+              f"{r['ids_s']:.1f} s / {r['shaded_s']:.1f} s | {r['peak_mib']:.0f} MiB |")
     return 0
 
 
@@ -306,7 +307,8 @@ def cmd_table2(a) -> int:
             ax.set_ylabel(what)
             ax.grid(True, which="both", alpha=0.3)
             ax.legend()
-        fig.suptitle(f"Cycles CPU, {Path(a.target).name}, {a.size}, {a.samples} samples: explicit curves vs virtual fibers")
+        fig.suptitle(f"Cycles CPU, {Path(a.target).name}, {a.size}, {a.samples} samples: "
+                     "explicit curves vs virtual fibers")
         fig.tight_layout()
         fig.savefig(a.plot, dpi=110)
     return 0

@@ -67,7 +67,7 @@ class Camera:
         return np.broadcast_to(self.position, d.shape).copy(), d
 
     @staticmethod
-    def from_params(p: Params, scene: Scene, aspect: float = 16 / 9) -> "Camera":
+    def from_params(p: Params, scene: Scene, aspect: float = 16 / 9) -> Camera:
         """Orbit camera about the scene centre (plus ``camera.target``). Distance 0 frames the scene: the
         nearest distance at which all eight corners of its bounding box fit the view, plus a margin."""
         lo, hi = scene.bounds()

@@ -44,7 +44,7 @@ class CompareView:
             self.texture.release()
             self.texture = None
 
-    def _render_a(self, viewer: "ViewerHost", size: tuple[int, int]) -> None:
+    def _render_a(self, viewer: ViewerHost, size: tuple[int, int]) -> None:
         from ..render.renderer import Renderer
         from ..scene.generators import build_scene
         from .display import render_still
@@ -72,7 +72,7 @@ class CompareView:
         self.texture.write(np.ascontiguousarray(self.image[::-1]).tobytes())
         self.renders += 1
 
-    def draw(self, viewer: "ViewerHost", rect: tuple[int, int, int, int]) -> None:
+    def draw(self, viewer: ViewerHost, rect: tuple[int, int, int, int]) -> None:
         """Bring A up to date (when B has settled) and draw it over B's render area."""
         s = viewer.state
         mode = s.view.compare

@@ -45,8 +45,9 @@ A script is a TOML or JSON file (by extension; JSON may also be a bare list of s
       { quit = 0 },                          # exit code; a script without quit leaves the window open
     ]
 
-The first key of a step is its action, the others its options. Each printed line starts with ``vfiber-script: `` followed by JSON, so a caller can pick them out of
-the output. A step that cannot run stops the script with exit code 2 and a message naming the step.
+The first key of a step is its action, the others its options. Each printed line starts with
+``vfiber-script: `` followed by JSON, so a caller can pick them out of the output. A step that cannot
+run stops the script with exit code 2 and a message naming the step.
 """
 
 from __future__ import annotations
@@ -109,7 +110,8 @@ def parse_script(doc: Any, source: str = "<script>") -> Script:
     if unknown:
         raise ScriptError(f"{source}: unknown top-level key {sorted(unknown)[0]!r}; allowed: steps, size")
     size = doc.get("size")
-    if size is not None and not (isinstance(size, list) and len(size) == 2 and all(isinstance(x, int) and x > 0 for x in size)):
+    if size is not None and not (isinstance(size, list) and len(size) == 2
+                                 and all(isinstance(x, int) and x > 0 for x in size)):
         raise ScriptError(f"{source}: size = {size!r} should be [width, height] in pixels")
     steps = []
     for i, step in enumerate(doc["steps"], 1):
@@ -170,7 +172,7 @@ class ScriptRunner:
     def done(self) -> bool:
         return self.index >= len(self.script.steps) and self._loop is None
 
-    def tick(self, viewer: "ViewerHost") -> None:
+    def tick(self, viewer: ViewerHost) -> None:
         """Called at the start of a frame. Runs steps until one needs frames to pass."""
         if self.exit_code is not None or viewer.loading():
             return           # a scene being built: its steps would act on the one before
@@ -216,13 +218,13 @@ class ScriptRunner:
             if waits:
                 return
 
-    def _fail(self, viewer: "ViewerHost", message: str, step: dict[str, Any] | None = None) -> None:
+    def _fail(self, viewer: ViewerHost, message: str, step: dict[str, Any] | None = None) -> None:
         import sys
         where = f"step {self.index} {json.dumps(step, default=str)}" if step is not None else f"step {self.index}"
         print(f"vfiber view: script {self.script.source}: {where}: {message}", file=sys.stderr, flush=True)
         self.exit_code = 2
 
-    def _run(self, viewer: "ViewerHost", step: dict[str, Any]) -> bool:
+    def _run(self, viewer: ViewerHost, step: dict[str, Any]) -> bool:
         """Run one step; True when the script must wait for frames before the next."""
         state = viewer.state
         action = next(iter(step))
@@ -363,7 +365,7 @@ class ScriptRunner:
             return True
         return False
 
-    def _continue_loop(self, viewer: "ViewerHost") -> None:
+    def _continue_loop(self, viewer: ViewerHost) -> None:
         loop = self._loop
         assert loop is not None
         state = viewer.state

@@ -474,7 +474,8 @@ class AppState:
             "errors": dict(self.errors), "pending": {k: _jsonable(v) for k, v in self.pending.items()},
             "notes": dict(self.notes), "scene_error": self.scene_error, "shader_error": self.shader_error,
             "status": self.status, "view": self.view.view, "compare": self.view.compare,
-            "pinned": self.pinned_name, "shown_controls": list(self.scratch.get("shown_controls", [])), "confirm": self.confirm.message if self.confirm else None,
+            "pinned": self.pinned_name, "shown_controls": list(self.scratch.get("shown_controls", [])),
+            "confirm": self.confirm.message if self.confirm else None,
             "params": {k: _jsonable(v) for k, v in self.params.values.items()},
             "stats": {
                 "frame_ms": s.frame_ms, "render_ms": s.render_ms, "render_clock": s.render_clock,

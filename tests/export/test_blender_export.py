@@ -60,7 +60,8 @@ def test_prisms_enclose_their_containers_with_joint_planes():
     assert scene.n_segments >= 12
     verts, faces, sizes, rows = XB.container_boxes(scene.segments)
     sides = XB.PRISM_SIDES
-    assert len(sizes) == scene.n_segments * (sides + 2) and (rows == np.repeat(np.arange(scene.n_segments), sides + 2)).all()
+    assert len(sizes) == scene.n_segments * (sides + 2)
+    assert (rows == np.repeat(np.arange(scene.n_segments), sides + 2)).all()
     polys = _faces(verts, faces, sizes)
     rng = np.random.default_rng(1)
     for k, row in enumerate(scene.segments):

@@ -7,7 +7,6 @@ process; every render runs in its own child process (~1.3 s each at these sizes,
 from __future__ import annotations
 
 import importlib.util
-from pathlib import Path
 
 import numpy as np
 import pytest

@@ -12,8 +12,6 @@ from __future__ import annotations
 import importlib.util
 import json
 import re
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -514,7 +512,6 @@ def test_closures_render_in_cycles(cycles, tmp_path, model, mode):
 # text into OSL source (app/export/osl_strings.py)
 
 from app.export.osl_strings import osl_identifier, osl_string_literal  # noqa: E402
-from tests.support.paths import ROOT
 
 HOSTILE = ["plain", 'a "quote" and \\ back\\slash', "line\nbreak\rcr\ttab", "nul\0here", "tri??=graph ??/ end???",
            "bell\x07 del\x7f", "unicode é ✓", '*/ // #define X', '"; } shader evil() { //', "\\"]

@@ -22,9 +22,9 @@ import signal
 import subprocess
 import sys
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
+from collections.abc import Callable
 from tests.support.paths import ROOT
 
 CASE_TIMEOUT_S = 60

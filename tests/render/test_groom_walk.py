@@ -10,7 +10,6 @@ there: many containers per ray, several draws per pixel.
 
 from __future__ import annotations
 
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -179,7 +178,8 @@ def test_every_fiber_the_float64_reference_sees_is_drawn(renderer, n):
     want = np.where(ref.hit[:, None], np.stack([ref.guide + 1, ref.ring, ref.fiber, ref.segment], 1), 0)
     assert ref.hit.sum() > 30
     differ = np.any(gpu != want, 1)
-    assert not differ.any(), f"{int(differ.sum())} of 300 rays differ ({int((ref.hit & (gpu[:, 0] == 0)).sum())} missed)"
+    missed = int((ref.hit & (gpu[:, 0] == 0)).sum())
+    assert not differ.any(), f"{int(differ.sum())} of 300 rays differ ({missed} missed)"
 
 
 def test_a_frame_does_not_depend_on_the_sizes_drawn_before(renderer, ctx):

@@ -3,13 +3,10 @@ and golden images that catch regressions (on llvmpipe only)."""
 
 from __future__ import annotations
 
-import json
 import shutil
-from pathlib import Path
 
 import numpy as np
 import pytest
-from PIL import Image
 
 from app.gl.shaders import ProgramCache, ShaderCompileError, glsl_root
 from app.render.renderer import Renderer, scene_gpu_bytes

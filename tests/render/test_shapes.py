@@ -54,8 +54,8 @@ def test_curved_glsl_matches_float64_reference(renderer):
 
 
 def test_twisted_fibers_have_twisted_tangents(renderer):
+    # Kajiya-Kay shades by the tangent alone, so a twisted tangent shows as a changed colour
     straight = setup(renderer, ONE, {"elevation": 0.0})
-    frame_s = renderer.render(straight[0], straight[2], SIZE, outputs=("geom", "ids"))
     twisted = setup(renderer, {**ONE, "shape.twist": 1.0}, {"elevation": 0.0})
     frame_t = renderer.render(twisted[0], twisted[2], SIZE, outputs=("color", "ids"))
     base = renderer.render(straight[0], straight[2], SIZE, outputs=("color",))

@@ -3,7 +3,6 @@ every pixel, in every mode, and auto picks the one the scene's overlap calls for
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pytest

@@ -418,7 +418,8 @@ def test_shader_hot_reload_keeps_the_last_good_program_and_recovers(tmp_path):
     path = tmp_path / "reload.json"
     path.write_text(json.dumps(script))
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    proc = subprocess.Popen([XVFB, "-a", "-s", "-screen 0 1280x1024x24", sys.executable, "-m", "app.viewer.app", "--script", str(path),
+    proc = subprocess.Popen([XVFB, "-a", "-s", "-screen 0 1280x1024x24", sys.executable, "-m", "app.viewer.app",
+                             "--script", str(path),
                              "--glsl-root", str(glsl)], cwd=ROOT, env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     lines: list[dict] = []
