@@ -120,7 +120,7 @@ def remove_stale_temporaries(path: str | os.PathLike[str]) -> list[Path]:
     process no longer runs (or, without a pid in the name, older than STALE_UNKNOWN_S). Returns them."""
     path = Path(path)
     directory = path.parent if str(path.parent) else Path(".")
-    removed = []
+    removed: list[Path] = []
     try:
         candidates = list(directory.glob(f".{glob_escape(path.name)}.*.tmp"))
     except OSError:
