@@ -1,7 +1,8 @@
 """The ``looks`` suite: each shared groom rendered by the virtual fibers, judged against its own strands.
 
-The reference is ``strand_reference``: the file's strands with child strands around each, drawn by the
-explicit baseline at the same camera, light and look. Per groom and per variant of the parameters (today
+The reference is ``strand_reference``: the file's strands with child strands interpolated between them
+(``REFERENCE``; the full level also shows the earlier "disc" reference, children in a disc around each
+strand, whose rows carry no targets), drawn by the explicit baseline at the same camera, light and look. Per groom and per variant of the parameters (today
 one, ``before``: the groom's defaults; the strand-controls work adds ``after``), two numbers:
 
 coverage IoU
@@ -40,6 +41,8 @@ TARGET_IOU, TARGET_ORIENTATION_DEG = 0.9, 10.0
 GROOMS = ("sintel_hair.tfx", "Bangs_100.hair", "Ratboy_mohawk.tfx", "harolongo.data", "Curly_100.ply")
 # label -> --set assignments on top of the groom's own parameters; the strand-controls work adds "after"
 VARIANTS: dict[str, list[str]] = {"before": []}
+# the suite's reference (strand_reference.METHODS); the full level also judges against "disc", the earlier one
+REFERENCE = "interpolated"
 
 
 # --------------------------------------------------------------------------------------------------
@@ -161,7 +164,8 @@ def configs(level: str) -> list[dict]:
                 for g in ("sintel_hair.tfx", "Curly_100.ply")]
     from .strand_reference import MAX_INSTANCES
 
-    return [{"groom": g, "size": (640, 360), "max_instances": MAX_INSTANCES} for g in GROOMS]
+    return [{"groom": g, "size": (640, 360), "max_instances": MAX_INSTANCES, "references": (REFERENCE, "disc")}
+            for g in GROOMS]
 
 
 def judge(ref_frame, frame) -> Row:
@@ -169,7 +173,7 @@ def judge(ref_frame, frame) -> Row:
     href, hv = ref_frame.ids[..., 0] > 0, frame.ids[..., 0] > 0
     deg, frac = orientation_agreement(ref_frame.color, href, frame.color, hv)
     both = href & hv
-    luma = lambda f: round(float(luminance(f.color)[both].mean()), 4) if both.any() else None  # noqa: E731
+    luma = lambda f: round(float(luminance(f.color)[both].mean()), 4) if both.any() else None
     return {"iou": round(coverage_iou(href, hv), 4), "orientation_deg": round(deg, 2),
             "oriented_frac": round(frac, 4), "covered_reference": round(float(href.mean()), 4),
             "covered_virtual": round(float(hv.mean()), 4), "luma_reference": luma(ref_frame),
@@ -177,6 +181,9 @@ def judge(ref_frame, frame) -> Row:
 
 
 def run(env, cfg: dict, variants: dict[str, list[str]] | None = None) -> list[Row]:
+    """Rows per (reference, variant): ``cfg["references"]`` (default: the interpolated one alone) names the
+    strand_reference methods to judge against, the first of them the suite's own (its rows carry the
+    targets); each gets a column of the sheet."""
     from ..presets import resolve_params
     from ..render.camera import Camera
     from ..render.explicit import ExplicitRenderer
@@ -193,15 +200,17 @@ def run(env, cfg: dict, variants: dict[str, list[str]] | None = None) -> list[Ro
     p, _ = resolve_params(str(path), [])
     scene = build_scene(p)
     cam = Camera.from_params(p, scene, aspect=size[0] / size[1])
-    t0 = time.perf_counter()
-    ref = strand_reference.build(p, scene, max_instances=cfg.get("max_instances", strand_reference.MAX_INSTANCES),
-                                 tip_taper=cfg.get("tip_taper", 0.0))
-    build_s = time.perf_counter() - t0
     explicit = ExplicitRenderer(env.ctx, budget_bytes=max(env.budget_bytes, 1 << 30))
-    t0 = time.perf_counter()
-    ref_frame = strand_reference.render(env.ctx, ref, p, cam, size, explicit)
-    ref_s = time.perf_counter() - t0
-    explicit.release()
+    refs = []
+    for method in cfg.get("references", (REFERENCE,)):
+        t0 = time.perf_counter()
+        ref = strand_reference.build(p, scene, max_instances=cfg.get("max_instances", strand_reference.MAX_INSTANCES),
+                                     method=method, tip_taper=cfg.get("tip_taper", 0.0))
+        build_s = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        ref_frame = strand_reference.render(env.ctx, ref, p, cam, size, explicit)
+        refs.append((ref, ref_frame, build_s, time.perf_counter() - t0))
+        explicit.release()                      # the next reference's 700 MB of rows is not added to these
     explicit.release_targets()
     renderer = Renderer(env.ctx)
     rows, shown, scenes = [], [], {_scene_key(p): scene}
@@ -214,20 +223,24 @@ def run(env, cfg: dict, variants: dict[str, list[str]] | None = None) -> list[Ro
         renderer.set_scene(scenes[key])
         t0 = time.perf_counter()
         frame = renderer.render_quality(pv, cam, size, outputs=("color", "ids"))
-        row: Row = {"groom": name, "variant": label, "sets": " ".join(sets), "width": size[0], "height": size[1],
-                    **judge(ref_frame, frame),
-                    "virtual_fibers": ref.virtual_fibers, "reference_fibers": ref.fibers,
-                    "reference_strands": ref.strands, "children": ref.children,
-                    "reference_segments": ref.n_segments, "reference_fiber_radius": round(ref.fiber_radius, 4),
-                    "capped": "yes" if ref.capped else "no", "reference_tip_taper": ref.tip_taper,
-                    "reference_build_s": round(build_s, 2),
-                    "reference_ms": round(1e3 * ref_s, 1), "ms": round(1e3 * (time.perf_counter() - t0), 1)}
-        rows.append(row)
-        shown.append((label, frame.color, row))
+        ms = round(1e3 * (time.perf_counter() - t0), 1)
+        for ref, ref_frame, build_s, ref_s in refs:
+            row: Row = {"groom": name, "variant": label, "reference": ref.method, "sets": " ".join(sets),
+                        "width": size[0], "height": size[1], **judge(ref_frame, frame),
+                        "virtual_fibers": ref.virtual_fibers, "reference_fibers": ref.fibers,
+                        "reference_strands": ref.strands, "children": round(ref.children, 1),
+                        "reference_segments": ref.n_segments, "reference_fiber_radius": round(ref.fiber_radius, 4),
+                        "capped": "yes" if ref.capped else "no", "reference_tip_taper": ref.tip_taper,
+                        "reference_clump": ref.clump, "reference_length_variation": ref.length_variation,
+                        "reference_tip_width": ref.tip_width, "reference_dropped": ref.dropped,
+                        "reference_build_s": round(build_s, 2),
+                        "reference_ms": round(1e3 * ref_s, 1), "ms": ms}
+            rows.append(row)
+        shown.append((label, frame.color, rows[-len(refs)]))
     renderer.release_targets()
     out = getattr(env, "out", None)
     if out:
-        write_sheet(Path(out) / f"sheet_{Path(name).stem}.png", name, ref, ref_frame.color, shown)
+        write_sheet(Path(out) / f"sheet_{Path(name).stem}.png", name, [(r, f.color) for r, f, _, _ in refs], shown)
     return rows
 
 
@@ -235,27 +248,33 @@ def _scene_key(p) -> tuple:
     return tuple(sorted((k, str(v)) for k, v in p.values.items() if k.startswith("scene.")))
 
 
-def sheet_tiles(groom: str, ref, ref_color: np.ndarray, shown: list[tuple[str, np.ndarray, Row]]):
-    """The sheet's columns: the reference, then one per variant (label, picture, its row of figures)."""
-    capped = f", capped from {ref.virtual_fibers:,}" if ref.capped else ""
-    tiles = [(f"{groom} reference: {ref.strands:,} file strands x {ref.children:,} children = "
-              f"{ref.fibers:,} fibers{capped}", ref_color)]
+def sheet_tiles(groom: str, refs, shown: list[tuple[str, np.ndarray, Row]]):
+    """The sheet's columns: each reference (``(Reference, picture)``, the suite's own first), then one per
+    variant (label, picture, its row of figures against the first reference)."""
+    tiles = []
+    for ref, color in refs:
+        capped = f", capped from {ref.virtual_fibers:,}" if ref.capped else ""
+        how = (f"{ref.strands:,} file strands + interpolated children = {ref.fibers:,} fibers{capped}"
+               if ref.method == "interpolated" else
+               f"{ref.strands:,} file strands x {ref.fibers_per_row:,} disc children = {ref.fibers:,} fibers{capped}")
+        tiles.append((f"{groom} reference ({ref.method}): {how}", color))
     for label, color, row in shown:
-        tiles.append((f"{label}: vfiber {row['virtual_fibers']:,} fibers; IoU {row['iou']:.3f}, orientation "
-                      f"{row['orientation_deg']:.1f} deg", color))
+        caption = (f"{label}: vfiber {row['virtual_fibers']:,} fibers; IoU {row['iou']:.3f}, orientation "
+                   f"{row['orientation_deg']:.1f} deg")
+        tiles.append((caption, color))
     return tiles
 
 
-def write_sheet(path: Path, groom: str, ref, ref_color: np.ndarray, shown) -> Path:
+def write_sheet(path: Path, groom: str, refs, shown) -> Path:
     from ..contact_sheet import compose_sheet
 
-    tiles = sheet_tiles(groom, ref, ref_color, shown)
+    tiles = sheet_tiles(groom, refs, shown)
     path.parent.mkdir(parents=True, exist_ok=True)
     compose_sheet(tiles, path, cols=len(tiles))
     return path
 
 
-COLUMNS = [("groom", "groom"), ("variant", "variant"), ("status", "status"), ("iou", "coverage IoU"),
+COLUMNS = [("groom", "groom"), ("variant", "variant"), ("reference", "reference"), ("status", "status"), ("iou", "coverage IoU"),
            ("orientation_deg", "orientation median deg"), ("oriented_frac", "compared px"),
            ("virtual_fibers", "vfiber fibers"), ("reference_fibers", "reference fibers"),
            ("children", "children/strand"), ("capped", "capped"), ("reference_fiber_radius", "child radius / R"),
@@ -264,20 +283,26 @@ COLUMNS = [("groom", "groom"), ("variant", "variant"), ("status", "status"), ("i
            ("reference_ms", "ref ms"), ("ms", "vfiber ms/frame")]
 
 NOTES = (f"Reference: the groom's own strands plus child strands (app/bench/strand_reference.py) through the "
-         f"explicit baseline, same camera, light and look. coverage IoU: hit masks blurred with sigma "
+         f"explicit baseline, same camera, light and look. reference 'interpolated' (the suite's, targets judged "
+         f"on it): children rooted between the strands' roots, each blended from its 4 nearest strands, mild clump, "
+         f"length variation, tapered tips; 'disc': children in a disc of radius R around each strand, parallel to "
+         f"it, full length (the earlier reference, shown for comparison). coverage IoU: hit masks blurred with sigma "
          f"{COVERAGE_BLUR_PX:g} px, thresholded at {COVERAGE_THRESHOLD:g}. orientation: structure tensor of the "
          f"shaded luminance (gradient sigma {GRADIENT_SIGMA_PX:g} px, tensor sigma {ORIENTATION_SCALE_PX:g} px), "
          f"median |angle difference| mod 180 deg over pixels covered in both with coherence >= "
          f"{COHERENCE_MIN:g} in both; compared px: that set's fraction of the pixels covered in both. luma: mean "
          f"Rec. 709 luma of the 8-bit picture over pixels covered in both (not judged; for the colour work). capped: "
-         f"the reference drew fewer children than vfiber's fibers per strand (strand_reference.MAX_INSTANCES), "
-         f"each widened (child radius / R) to keep the strand's projected cross-section. Sheets: sheet_<groom>.png.")
+         f"the reference drew fewer fibers than vfiber (strand_reference.MAX_INSTANCES), each widened (child "
+         f"radius / R, at the root) to keep the projected cross-section. children/strand: reference fibers per file "
+         f"strand. Sheets: sheet_<groom>.png.")
 
 
 def targets(rows: list[Row]) -> list[Row]:
     out: list[Row] = []
     for r in rows:
         if r.get("status", "ok") != "ok" or r.get("iou") is None:
+            continue
+        if r.get("reference", REFERENCE) != REFERENCE:      # the disc reference's rows are shown, not judged
             continue
         out.append({"target": f"{r['groom']} ({r['variant']}): coverage IoU >= {TARGET_IOU:g}",
                     "measured": f"{r['iou']:.3f}", "met": r["iou"] >= TARGET_IOU})
@@ -290,15 +315,16 @@ def targets(rows: list[Row]) -> list[Row]:
 
 
 def plot(rows: list[Row], path: Path, machine, plt, save) -> None:
-    """IoU and orientation per groom and variant, the targets dashed."""
+    """IoU and orientation per groom, variant and reference, the targets dashed."""
     ok = [r for r in rows if r.get("status", "ok") == "ok" and r.get("iou") is not None]
     grooms = list(dict.fromkeys(r["groom"] for r in ok))
-    variants = list(dict.fromkeys(r["variant"] for r in ok))
+    label = lambda r: f"{r['variant']} vs {r.get('reference', REFERENCE)} reference"
+    variants = list(dict.fromkeys(label(r) for r in ok))
     xs = np.arange(len(grooms))
     w = 0.8 / max(1, len(variants))
     fig, (a, b) = plt.subplots(1, 2, figsize=(12, 4.5))
     for i, v in enumerate(variants):
-        by = {r["groom"]: r for r in ok if r["variant"] == v}
+        by = {r["groom"]: r for r in ok if label(r) == v}
         off = (i - (len(variants) - 1) / 2) * w
         a.bar(xs + off, [by.get(g, {}).get("iou") or 0 for g in grooms], w, label=v)
         b.bar(xs + off, [by.get(g, {}).get("orientation_deg") or 0 for g in grooms], w, label=v)

@@ -9,7 +9,12 @@ import numpy as np
 import pytest
 
 from app.bench import looks, strand_reference
-from app.bench.looks import angle_difference_deg, coverage_iou, orientation_agreement, orientation_field
+from app.bench.looks import (
+    angle_difference_deg,
+    coverage_iou,
+    orientation_agreement,
+    orientation_field,
+)
 
 
 def stripes(angle_deg: float, size=(128, 128), period: float = 6.0) -> np.ndarray:
@@ -82,6 +87,13 @@ def test_orientation_agreement_identical_rotated_and_unoriented():
 
 
 # --- child strands ----------------------------------------------------------------------------------------
+def test_disc_reference_stays_reachable_and_the_full_level_shows_both():
+    assert [c["references"] for c in looks.configs("full")] == [("interpolated", "disc")] * len(looks.GROOMS)
+    rows = [{"groom": "g", "variant": "before", "reference": m, "iou": 0.5, "orientation_deg": 20.0}
+            for m in ("interpolated", "disc")]
+    assert len(looks.targets(rows)) == 2                  # the disc rows are shown, not judged
+
+
 def test_child_offsets_count_bounds_and_seed():
     o = strand_reference.child_offsets(50, 200, seed=3)
     assert o.shape == (50, 200, 2)
@@ -102,7 +114,7 @@ def test_children_follow_their_strand_at_a_bounded_constant_offset(taper):
     strands = np.stack([np.stack([np.cos(3 * t) + k, np.sin(3 * t), 2 * t], -1) for k in range(3)])
     R = 0.1
     rows = container_rows(strands, np.full(3, R), taper, np.zeros(3))
-    w = lambda k, tt: (rows[k, 3] + tt * (rows[k, 7] - rows[k, 3]))[..., None]   # noqa: E731
+    w = lambda k, tt: (rows[k, 3] + tt * (rows[k, 7] - rows[k, 3]))[..., None]
     offsets = strand_reference.child_offsets(3, 16, seed=1)
     rec = strand_reference.child_records(rows, offsets).reshape(len(rows), 16, 6)
     half = rec[..., :5].copy().view(np.float16).astype(np.float64)
@@ -116,12 +128,136 @@ def test_children_follow_their_strand_at_a_bounded_constant_offset(taper):
     per_strand = np.linalg.norm(d, axis=-1).reshape(3, 8, 16)
     assert np.allclose(per_strand, per_strand[:, :1], atol=2e-3)
     # a child's end on one piece is its start on the next: no gap at a joint
-    p = lambda k, tt: rows[k, 0:3] + tt[..., None] * axis[k] + w(k, tt) * d[k]   # noqa: E731
+    p = lambda k, tt: rows[k, 0:3] + tt[..., None] * axis[k] + w(k, tt) * d[k]
     for k in range(7):
         assert np.allclose(p(k, t1[k]), p(k + 1, t0[k + 1]), atol=2e-3 * R + 2e-3 * 0.4)
     # the offset from the strand at its tip is (1 - taper) R at most
     tip = np.linalg.norm(p(7, t1[7]) - strands[np.asarray(rows[7, 19], int), -1], axis=-1)
     assert tip.max() <= (1.0 - taper) * R * (1 + 1e-2) + 1e-3 and tip.max() >= 0.8 * (1.0 - taper) * R
+
+
+# --- interpolated children ---------------------------------------------------------------------------------
+def wavy_guides(n=12, points=9, seed=0):
+    """n guides on a 4 x 3 grid of roots 1 apart, each a different wavy, leaning strand of 2 .. 3 long."""
+    rng = np.random.default_rng(seed)
+    t = np.linspace(0.0, 1.0, points)
+    out = []
+    for i in range(n):
+        root = np.array([i % 4, i // 4, 0.0])
+        a, b, L = rng.uniform(-0.5, 0.5), rng.uniform(0, 2 * np.pi), rng.uniform(2, 3)
+        shape = np.stack([a * t + 0.2 * np.sin(6 * t + b), 0.2 * np.cos(5 * t + b), L * t], -1)
+        out.append(root + shape - shape[0])
+    return np.stack(out)
+
+
+def test_interpolation_is_deterministic_with_a_seed():
+    g = strand_reference.resample_guides(wavy_guides(), 16)
+    r1, p1 = strand_reference.child_roots(g, 500, seed=7)
+    r2, p2 = strand_reference.child_roots(g, 500, seed=7)
+    r3, _ = strand_reference.child_roots(g, 500, seed=8)
+    assert np.array_equal(r1, r2) and np.array_equal(p1, p2) and not np.array_equal(r1, r3)
+    a = strand_reference.interpolate(g, r1, 8, parents=p1)
+    assert np.array_equal(a, strand_reference.interpolate(g, r2, 8, parents=p2))
+    assert a.shape == (500, 9, 3) and np.isfinite(a).all()
+
+
+def test_child_roots_counts_parents_and_spread():
+    g = strand_reference.resample_guides(wavy_guides(), 16)
+    roots, parents = strand_reference.child_roots(g, 12 + 12 * 40, seed=1)
+    assert roots.shape == (492, 3)
+    assert np.array_equal(roots[:12], g[:, 0]) and np.array_equal(parents[:12], np.arange(12))
+    assert np.array_equal(np.bincount(parents), np.full(12, 41))        # every guide the same number
+    off = roots[12:] - g[parents[12:], 0]
+    dist = np.linalg.norm(off, axis=1)
+    assert dist.max() <= 1.0 + 1e-9 and dist.mean() > 0.6               # spacing 1: uniform by area, mean 2/3
+    first = g[:, 1] - g[:, 0]
+    first /= np.linalg.norm(first, axis=1, keepdims=True)
+    assert np.abs(np.einsum("nx,nx->n", off, first[parents[12:]])).max() < 1e-9   # in the normal plane
+    with pytest.raises(ValueError):
+        strand_reference.child_roots(g, 5)
+
+
+def test_a_child_rooted_at_a_guide_root_is_that_guide():
+    g = strand_reference.resample_guides(wavy_guides(), 16)
+    for clump in (0.0, 0.25, 1.0):
+        kids = strand_reference.interpolate(g, g[:, 0], 16, clump=clump)
+        assert np.allclose(kids, g, atol=1e-9)
+    # on the guides' own 8-piece resampling as well (the common parameter is finer than what is drawn)
+    fine = strand_reference.resample_guides(wavy_guides(), 64)
+    kids = strand_reference.interpolate(fine, fine[:, 0], 8)
+    assert np.allclose(kids, strand_reference.resample_guides(wavy_guides(), 8), atol=1e-9)
+
+
+def test_children_of_two_parallel_straight_guides_lie_between_them():
+    t = np.linspace(0.0, 1.0, 5)[:, None]
+    g = np.stack([np.array([0.0, 0, 0]) + t * [0.3, 0, 2], np.array([1.0, 0, 0]) + t * [0.3, 0, 2]])
+    g = strand_reference.resample_guides(g, 32)
+    x = np.linspace(0.0, 1.0, 21)
+    roots = np.stack([x, np.zeros_like(x), np.zeros_like(x)], -1)
+    for clump in (0.0, 0.25):
+        kids = strand_reference.interpolate(g, roots, 10, clump=clump)
+        if clump == 0.0:        # both guides have one shape: each child is its root plus that shape
+            s = np.linspace(0.0, 1.0, 11)[:, None]
+            assert np.allclose(kids - roots[:, None], (s * [0.3, 0.0, 2.0])[None], atol=1e-9)
+        u = kids[..., 0] - 0.3 * kids[..., 2] / 2.0                    # x at the guides' lean removed
+        assert np.all(u >= -1e-9) and np.all(u <= 1.0 + 1e-9)           # between the two guides
+        assert np.allclose(kids[..., 1], 0.0) and np.allclose(kids[:, -1, 2], 2.0)
+    # the clump pulls a child toward its nearer guide at the tip, not past it
+    kids = strand_reference.interpolate(g, roots, 10, clump=0.5)
+    tip_u = kids[:, -1, 0] - 0.3
+    near = np.round(x)
+    moved = np.abs(tip_u - near) < np.abs(x - near) - 1e-6
+    assert np.all(np.abs(tip_u - near) <= np.abs(x - near) + 1e-9) and moved[(x > 0) & (x < 1) & (x != 0.5)].all()
+
+
+def test_shorter_children_follow_the_blend_and_tips_taper():
+    g = strand_reference.resample_guides(wavy_guides(), 64)
+    roots = g[:, 0]
+    full = strand_reference.interpolate(g, roots, 8, clump=0.0)
+    half = strand_reference.interpolate(g, roots, 8, clump=0.0, lengths=np.full(12, 0.5))
+    assert np.allclose(half[:, -1], full[:, 4], atol=1e-9)              # half the length: the middle
+    from app.scene.grooms import container_rows
+
+    rows = container_rows(full, np.full(12, 0.1), 1.0 - 0.2, np.zeros(3))
+    assert np.allclose(rows.reshape(12, 8, 20)[:, -1, 7], 0.02)         # tip width 0.2 of the root's
+
+
+def test_axial_records_run_exactly_from_joint_to_joint():
+    from app.scene.grooms import container_rows
+
+    g = strand_reference.resample_guides(wavy_guides(), 8)
+    rows = container_rows(g, np.full(12, 0.05), 0.8, np.zeros(3))
+    depth = np.linspace(0.0, 1.0, 12)
+    rec = strand_reference.axial_records(rows, depth)
+    half = rec[:, :5].copy().view(np.float16).astype(np.float64)
+    d, t0, t1 = half[:, 0:3], half[:, 3], half[:, 4]
+    assert np.allclose(np.linalg.norm(d, axis=1), depth[rows[:, 19].astype(int)], atol=2e-3)
+    w = lambda tt: rows[:, 3] + tt * (rows[:, 7] - rows[:, 3])
+    P = lambda tt: rows[:, 0:3] + tt[:, None] * (rows[:, 4:7] - rows[:, 0:3]) + w(tt)[:, None] * d
+    h = np.linalg.norm(rows[:, 4:7] - rows[:, 0:3], axis=1)[:, None]
+    assert np.allclose(P(t0), rows[:, 0:3], atol=2e-3 * h.max())
+    assert np.allclose(P(t1), rows[:, 4:7], atol=2e-3 * h.max())
+
+
+def test_degenerate_strands_give_no_nan():
+    t = np.linspace(0.0, 1.0, 6)[:, None]
+    strands = [np.zeros((6, 3)),                                         # zero length
+               np.array([[1.0, 0, 0]] * 3 + [[1.0, 0, 1.0]] * 3),         # duplicate points
+               np.array([[2.0, 0, 0], [2.0, 0, 1e-7]]),                    # a stub
+               np.array([1.0, 0, 0]) + t * [0, 0, 1.0],                    # the same root as the second
+               np.array([[3.0, 0, 0]])]                                    # one point
+    g = strand_reference.resample_guides(strands, 8)
+    assert g.shape == (5, 9, 3) and np.isfinite(g).all()
+    assert np.allclose(g[0], 0.0) and np.allclose(g[4], [3.0, 0, 0])
+    roots, parents = strand_reference.child_roots(g, 205, seed=2)
+    assert np.isfinite(roots).all()
+    kids = strand_reference.interpolate(g, roots, 8, parents=parents,
+                                        lengths=np.random.default_rng(0).random(205))
+    assert np.isfinite(kids).all()
+    assert np.isfinite(strand_reference.interpolate(g[:1], roots[:3], 4)).all()   # one zero-length guide
+    assert np.isfinite(strand_reference.root_spacing(np.zeros((4, 3)))).all()
+    with pytest.raises(ValueError):
+        strand_reference.resample_guides([np.zeros((0, 3))], 4)
 
 
 # --- a tiny run on a shared groom ---------------------------------------------------------------------------
@@ -135,25 +271,27 @@ def test_suite_smoke_on_one_groom(ctx, tmp_path):
     cfg = SUITES["looks"].configs("smoke")[0]
     env = Env(ctx, reps=1, warmup=0, level="smoke", out=str(tmp_path))
     rows = SUITES["looks"].run(env, cfg)
-    assert [r["variant"] for r in rows] == ["before"]
+    assert [(r["variant"], r["reference"]) for r in rows] == [("before", "interpolated")]
     r = rows[0]
     assert 0.0 < r["iou"] <= 1.0 and 0.0 < r["covered_reference"] and 0.0 < r["covered_virtual"]
     assert r["virtual_fibers"] == 360_000 and r["capped"] == "yes"
-    assert r["reference_fibers"] == r["reference_strands"] * r["children"]
-    assert r["reference_segments"] * r["reference_fibers"] <= cfg["max_instances"]
+    # capped: as many fibers as the ribbon budget holds (none dropped on Curly), each widened
+    assert r["reference_fibers"] == cfg["max_instances"] // r["reference_segments"] - r["reference_dropped"]
+    assert r["reference_dropped"] == 0 and r["reference_fiber_radius"] > 0.01
     sheet = tmp_path / "sheet_Curly_100.png"
     from app.contact_sheet import labels_of, layout_of
 
     labels = labels_of(sheet)
-    assert len(labels) == 2 and labels[0].startswith("Curly_100.ply reference") and labels[1].startswith("before")
+    assert len(labels) == 2 and labels[0].startswith("Curly_100.ply reference (interpolated)")
+    assert labels[1].startswith("before")
     boxes, _ = layout_of(sheet)
     assert boxes[0][1] == boxes[1][1]                                         # one row: reference | before
 
 
 def test_set_fibers_refuses_records_that_do_not_fit_the_rows(ctx):
     from app.render.explicit import ExplicitRenderer
-    from app.scene.grooms import container_rows
     from app.scene.containers import Scene
+    from app.scene.grooms import container_rows
 
     strands = np.stack([np.stack([np.zeros(3), np.zeros(3), np.linspace(0, 1, 3)], -1)])
     scene = Scene(container_rows(strands, np.full(1, 0.1), 0.0, np.zeros(3)), np.zeros(3), "one", 1)
