@@ -36,11 +36,17 @@ children: each piece of a parent strand is a container row like the virtual rend
 (``container_rows``: frames transported minimally, joints closed by bisecting planes), each child one
 instance per row, clipped by the joint planes. Interpolated children have a shape of their own, so each is
 its own chain of rows with radius R (tapering), one instance per row. The ribbon shader reads a fiber's
-depth in its container, |d|, for sky occlusion and the density self-shadow; an interpolated child has no
-container, so it gets a random depth with the disc's distribution (sqrt of a uniform, 0 for the guides),
-stored as d = depth x the row's own axis. P(t) = p0 + t (p1 - p0) + w(t) d then stays on the row's axis, and
-[t0, t1] is solved so that the ribbon runs exactly from joint to joint. Same camera (``Camera.from_params`` of
-the virtual scene), same light, same look parameters.
+depth in its container, |d|, for sky occlusion and the density self-shadow (the light's path to the
+container's wall). An interpolated child has no container, so those terms mean nothing for it: drawn at
+random depths (the disc's distribution), each as if at that depth in a container of its own whatever side
+of the hair it is on, the visible children were shadowed like buried ones (sintel's reference fell from
+luma 0.60 to 0.25), where the disc reference's visible children sit on the lit side of
+their disc and are barely shadowed (0.604 with self-shadow, 0.610 without). So every interpolated child is
+drawn at depth 1, on the wall: no self-shadow, no occlusion, the look of ``look.self_shadow=off``. The
+depth is stored as d = depth x the row's own axis: P(t) = p0 + t (p1 - p0) + w(t) d then stays on the
+row's axis, and [t0, t1] is solved so that the ribbon runs exactly from joint to joint.
+
+Same camera (``Camera.from_params`` of the virtual scene), same light, same look parameters.
 
 Count. As many fibers as the virtual renderer draws with the same parameters, unless fibers x pieces would
 pass ``MAX_INSTANCES`` ribbons (6-12 s a frame on this 2-core llvmpipe machine): then fewer, each widened so
@@ -326,11 +332,13 @@ def axial_records(rows: np.ndarray, depth: np.ndarray, seed: int = SEED) -> np.n
     r0, r1 = rows[:, 3], rows[:, 7]
     dep = np.asarray(depth, np.float64)[strand]
     # along the axis, P(t) sits at z(t) = t h + (r0 + t (r1 - r0)) dep: solve z = 0 and z = h
+    # a piece much shorter than its radius would need |t| past what float16 holds well: it gets the depth
+    # that keeps |t0| <= 8 (shading only; the ribbon stays where it is)
+    dep = np.minimum(dep, 8.0 * h / np.maximum(np.maximum(r0, r1), 1e-300))
     den = h + (r1 - r0) * dep
-    t0 = -r0 * dep / den
-    t1 = (h - r0 * dep) / den
-    # a piece much shorter than its radius would need |t| past what float16 holds well: that piece is
-    # drawn at depth 0 (shading only; the ribbon stays where it is)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t0 = -r0 * dep / den
+        t1 = (h - r0 * dep) / den
     bad = ~(np.isfinite(t0) & np.isfinite(t1) & (np.abs(t0) < 16.0) & (np.abs(t1) < 16.0) & (den > 0))
     t0, t1, dep = np.where(bad, 0.0, t0), np.where(bad, 1.0, t1), np.where(bad, 0.0, dep)
     half = np.empty((len(rows), 5), np.float16)
@@ -422,8 +430,7 @@ def build(p: Params, virtual_scene: Scene, *, max_instances: int = MAX_INSTANCES
     rng = np.random.default_rng(seed + 2)
     frac = 1.0 - length_variation * rng.random(total)
     frac[:S] = 1.0
-    depth = np.sqrt(rng.random(total))
-    depth[:S] = 0.0
+    depth = np.ones(total)                          # on the wall: see the module (how it is drawn)
     kids = interpolate(guides, roots, n_seg, parents=parents, clump=clump, lengths=frac)
     ok = (np.linalg.norm(np.diff(kids, axis=1), axis=2) > 1e-12 * max(R, 1e-300)).all(axis=1)
     ok &= np.isfinite(kids).all(axis=(1, 2))
