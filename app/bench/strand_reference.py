@@ -332,14 +332,15 @@ def axial_records(rows: np.ndarray, depth: np.ndarray, seed: int = SEED) -> np.n
     r0, r1 = rows[:, 3], rows[:, 7]
     dep = np.asarray(depth, np.float64)[strand]
     # along the axis, P(t) sits at z(t) = t h + (r0 + t (r1 - r0)) dep: solve z = 0 and z = h
-    # a piece much shorter than its radius would need |t| past what float16 holds well: it gets the depth
-    # that keeps |t0| <= 8 (shading only; the ribbon stays where it is)
-    dep = np.minimum(dep, 8.0 * h / np.maximum(np.maximum(r0, r1), 1e-300))
+    # a piece shorter than its radius needs |t| > 1 (Curly's coils: pieces of 0.17 R, |t| ~ 6); float16
+    # keeps |t| <= 1000 to 2^-11 relative, a position error of half a piece there, which is 1/2000 of the
+    # radius. A piece shorter still gets the depth that keeps |t0| <= 1000 (shading only; the ribbon stays)
+    dep = np.minimum(dep, 1000.0 * h / np.maximum(np.maximum(r0, r1), 1e-300))
     den = h + (r1 - r0) * dep
     with np.errstate(divide="ignore", invalid="ignore"):
         t0 = -r0 * dep / den
         t1 = (h - r0 * dep) / den
-    bad = ~(np.isfinite(t0) & np.isfinite(t1) & (np.abs(t0) < 16.0) & (np.abs(t1) < 16.0) & (den > 0))
+    bad = ~(np.isfinite(t0) & np.isfinite(t1) & (np.abs(t0) < 2048.0) & (np.abs(t1) < 2048.0) & (den > 0))
     t0, t1, dep = np.where(bad, 0.0, t0), np.where(bad, 1.0, t1), np.where(bad, 0.0, dep)
     half = np.empty((len(rows), 5), np.float16)
     half[:, 0:3] = dep[:, None] * ez

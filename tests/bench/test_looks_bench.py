@@ -222,11 +222,12 @@ def test_shorter_children_follow_the_blend_and_tips_taper():
     assert np.allclose(rows.reshape(12, 8, 20)[:, -1, 7], 0.02)         # tip width 0.2 of the root's
 
 
-def test_axial_records_run_exactly_from_joint_to_joint():
+@pytest.mark.parametrize("radius", [0.05, 2.0])       # 2.0: pieces of 0.02 .. 0.2 radii, as Curly's coils
+def test_axial_records_run_exactly_from_joint_to_joint(radius):
     from app.scene.grooms import container_rows
 
     g = strand_reference.resample_guides(wavy_guides(), 8)
-    rows = container_rows(g, np.full(12, 0.05), 0.8, np.zeros(3))
+    rows = container_rows(g, np.full(12, radius), 0.8, np.zeros(3))
     depth = np.linspace(0.0, 1.0, 12)
     rec = strand_reference.axial_records(rows, depth)
     half = rec[:, :5].copy().view(np.float16).astype(np.float64)
@@ -235,8 +236,8 @@ def test_axial_records_run_exactly_from_joint_to_joint():
     w = lambda tt: rows[:, 3] + tt * (rows[:, 7] - rows[:, 3])
     P = lambda tt: rows[:, 0:3] + tt[:, None] * (rows[:, 4:7] - rows[:, 0:3]) + w(tt)[:, None] * d
     h = np.linalg.norm(rows[:, 4:7] - rows[:, 0:3], axis=1)[:, None]
-    assert np.allclose(P(t0), rows[:, 0:3], atol=2e-3 * h.max())
-    assert np.allclose(P(t1), rows[:, 4:7], atol=2e-3 * h.max())
+    tol = 2e-3 * max(h.max(), radius)
+    assert np.allclose(P(t0), rows[:, 0:3], atol=tol) and np.allclose(P(t1), rows[:, 4:7], atol=tol)
 
 
 def test_degenerate_strands_give_no_nan():
