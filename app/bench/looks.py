@@ -228,7 +228,7 @@ def run(env, cfg: dict, variants: dict[str, list[str]] | None = None) -> list[Ro
             row: Row = {"groom": name, "variant": label, "reference": ref.method, "sets": " ".join(sets),
                         "width": size[0], "height": size[1], **judge(ref_frame, frame),
                         "virtual_fibers": ref.virtual_fibers, "reference_fibers": ref.fibers,
-                        "reference_strands": ref.strands, "children": round(ref.children, 1),
+                        "reference_strands": ref.strands, "children": int(round(ref.children)),
                         "reference_segments": ref.n_segments, "reference_fiber_radius": round(ref.fiber_radius, 4),
                         "capped": "yes" if ref.capped else "no", "reference_tip_taper": ref.tip_taper,
                         "reference_clump": ref.clump, "reference_length_variation": ref.length_variation,
