@@ -41,7 +41,7 @@ TARGET_IOU, TARGET_ORIENTATION_DEG = 0.9, 10.0
 GROOMS = ("sintel_hair.tfx", "Bangs_100.hair", "Ratboy_mohawk.tfx", "harolongo.data", "Curly_100.ply")
 # label -> --set assignments on top of the groom's own parameters; the strand-controls work adds "after"
 VARIANTS: dict[str, list[str]] = {"before": []}
-# the suite's reference (strand_reference.METHODS); the full level also judges against "disc", the earlier one
+# the suite's reference (strand_reference.METHODS); the full level also shows "disc", the earlier one, untargeted
 REFERENCE = "interpolated"
 
 
