@@ -228,7 +228,7 @@ def run(env, cfg: dict, variants: dict[str, list[str]] | None = None) -> list[Ro
             row: Row = {"groom": name, "variant": label, "reference": ref.method, "sets": " ".join(sets),
                         "width": size[0], "height": size[1], **judge(ref_frame, frame),
                         "virtual_fibers": ref.virtual_fibers, "reference_fibers": ref.fibers,
-                        "reference_strands": ref.strands, "children": int(round(ref.children)),
+                        "reference_strands": ref.strands, "children": round(ref.children),
                         "reference_segments": ref.n_segments, "reference_fiber_radius": round(ref.fiber_radius, 4),
                         "capped": "yes" if ref.capped else "no", "reference_tip_taper": ref.tip_taper,
                         "reference_clump": ref.clump, "reference_length_variation": ref.length_variation,
@@ -306,8 +306,9 @@ def targets(rows: list[Row]) -> list[Row]:
             continue
         out.append({"target": f"{r['groom']} ({r['variant']}): coverage IoU >= {TARGET_IOU:g}",
                     "measured": f"{r['iou']:.3f}", "met": r["iou"] >= TARGET_IOU})
-        deg = r.get("orientation_deg")
-        ok = isinstance(deg, (int, float)) and not np.isnan(deg)
+        raw = r.get("orientation_deg")
+        deg = float(raw) if isinstance(raw, (int, float)) else float("nan")
+        ok = not np.isnan(deg)
         out.append({"target": f"{r['groom']} ({r['variant']}): orientation <= {TARGET_ORIENTATION_DEG:g} deg",
                     "measured": f"{deg:.1f} deg" if ok else "nothing to compare",
                     "met": (deg <= TARGET_ORIENTATION_DEG) if ok else None})
