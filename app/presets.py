@@ -497,24 +497,73 @@ def find_preset(name_or_path: str | os.PathLike[str]) -> Preset:
 DEFAULT_PRESET = "default"   # the look a command without a target renders
 
 
-def resolve_params(target: str | None, assignments: Iterable[str] = ()) -> tuple[Params, str]:
-    """Params of a command's target -- a preset (name or file) or a groom file -- with ``--set`` overrides,
-    and a label saying where they came from (for messages). The one way every face (the command line, the
-    exporters, the benches) turns a target into parameters."""
-    values: dict = {}
-    label = "defaults"
+# A preset is a whole scene; applied to a groom it gives only its look. The look is how fibers fill and shade
+# the containers (fibers, shape, look, light); the shot is what the target owns: which containers exist
+# (scene), what frames them (camera) and what a frame of them costs (quality: a brute mode or 4x4 supersample
+# tuned on one cylinder would make a 150,000-strand groom take minutes, and visibility is picked for a scene's
+# density). Every look value is relative to the container it sits in (fiber_radius and curl_amplitude are
+# fractions of the container and ring radius, twist and curl count turns per container length), so a look made
+# on a generated cylinder means the same on a groom's strand containers.
+LOOK_GROUPS: tuple[str, ...] = ("fibers", "shape", "look", "light")
+SHOT_GROUPS: tuple[str, ...] = tuple(g for g in GROUPS if g not in LOOK_GROUPS)
+
+
+def look_values(params: Params) -> dict[str, Any]:
+    """The look of ``params``: every value of LOOK_GROUPS, the ones a preset left at their default too (a
+    look is all of them, so applying ``default`` gives back a groom's own defaults)."""
+    return {k: v for k, v in params.values.items() if k.split(".", 1)[0] in LOOK_GROUPS}
+
+
+def apply_look(target: Params, look: Params) -> Params:
+    """``target``'s scene, camera and quality under ``look``'s look (see LOOK_GROUPS)."""
+    return Params({**target.values, **look_values(look)})
+
+
+def is_groom(params: Params) -> bool:
+    return params["scene.generator"] == "groom"
+
+
+def resolve_params(target: str | None, assignments: Iterable[str] = (),
+                   look: str | None = None) -> tuple[Params, str]:
+    """Params of a command's target -- a preset (name or file) or a groom file -- with ``look`` (``--preset``)
+    applied when the target is a groom, then the ``--set`` overrides, and a label saying where they came from
+    (for messages). The one way every face (the command line, the exporters, the benches) turns a target into
+    parameters.
+
+    ``look`` alone, or equal to ``target``, is the target (``vfiber render --preset curly-1``). With a groom
+    (a groom file, or a preset holding one) it is a preset whose look goes onto the groom; the groom keeps its
+    scene, camera and quality. Anything else is two scenes at once, an error."""
+    if look is None or target is None or look == target:
+        values, label = _target_values(target or look)
+        return with_assignments(values, assignments), label
+    values, label = _target_values(target)
+    if values.get("scene.generator") != "groom":
+        raise UsageError(f"two scenes given: {target!r} and --preset {look!r}; --preset puts a preset's look on "
+                         f"a groom (a {'/'.join(GROOM_SUFFIXES)} file, or a preset holding one), and {target!r} "
+                         "is a scene of its own: give one of them")
+    if Path(look).suffix.lower() in GROOM_SUFFIXES:
+        raise UsageError(f"two grooms given: {target!r} and --preset {look!r}; --preset takes a look (a preset "
+                         f"name or .toml file) to put on the groom {target!r}")
+    preset = find_preset(look)
+    if is_groom(preset.params):
+        raise UsageError(f"--preset {look!r} is itself a groom (scene.groom_file = "
+                         f"{preset.params['scene.groom_file']!r}), so with {target!r} there are two grooms; give "
+                         f"it alone to see it, or take its look from a preset without a groom file")
+    values.update(look_values(preset.params))
+    return with_assignments(values, assignments), f"{label} with the look of {preset.path or look}"
+
+
+def _target_values(target: str | None) -> tuple[dict[str, Any], str]:
+    """(values, label) of a preset or groom file before any ``--set``; no target: the default preset."""
     if target and Path(target).suffix.lower() in GROOM_SUFFIXES:
         if not Path(target).exists():
             raise UsageError(f"{target}: no such groom file")
-        values = {"scene.generator": "groom", "scene.groom_file": str(Path(target).resolve())}
-        label = target
-    else:
-        name = target or (DEFAULT_PRESET if DEFAULT_PRESET in bundled_names() else None)
-        if name:
-            preset = find_preset(name)
-            values = groom_relative_to_preset(dict(preset.params.values), preset.path)
-            label = str(preset.path or name)
-    return with_assignments(values, assignments), label
+        return {"scene.generator": "groom", "scene.groom_file": str(Path(target).resolve())}, target
+    name = target or (DEFAULT_PRESET if DEFAULT_PRESET in bundled_names() else None)
+    if not name:
+        return {}, "defaults"
+    preset = find_preset(name)
+    return groom_relative_to_preset(dict(preset.params.values), preset.path), str(preset.path or name)
 
 
 def groom_relative_to_preset(values: dict, preset_path: Path | None) -> dict:

@@ -567,3 +567,73 @@ def test_values_are_finite_after_load(tmp_path: Path) -> None:
             if isinstance(v, float):
                 assert math.isfinite(v), key
     assert set(preset.params.values) == set(BY_KEY)
+
+
+# --------------------------------------------------------------------------------------------------
+# a preset's look on a groom (issue 15): only the look groups travel, the groom keeps its shot
+
+SINTEL = Path(__file__).resolve().parents[1].parent / "shared" / "hair-data" / "sintel_hair.tfx"
+needs_sintel = pytest.mark.skipif(not SINTEL.exists(), reason=f"{SINTEL} not present")
+
+
+def as_sets(values: dict[str, Any]) -> list[str]:
+    """``--set`` texts that give these values, written as a person would type them."""
+    def text(v: Any) -> str:
+        if isinstance(v, tuple):
+            return ",".join(repr(float(x)) for x in v)
+        return str(v).lower() if isinstance(v, bool) else repr(v) if isinstance(v, float) else str(v)
+    return [f"{k}={text(v)}" for k, v in values.items()]
+
+
+def test_the_look_and_the_shot_split_every_group_once():
+    assert set(presets.LOOK_GROUPS) | set(presets.SHOT_GROUPS) == set(GROUPS)
+    assert not set(presets.LOOK_GROUPS) & set(presets.SHOT_GROUPS)
+    assert {"scene", "camera"} <= set(presets.SHOT_GROUPS)
+
+
+@needs_sintel
+@pytest.mark.parametrize("name", [p.path.stem for p in bundled_presets() if p.params["scene.generator"] != "groom"])
+def test_a_look_on_a_groom_takes_the_presets_look_and_keeps_the_grooms_shot(name):
+    groom, _ = presets.resolve_params(str(SINTEL))
+    looked, label = presets.resolve_params(str(SINTEL), look=name)
+    look = find_preset(name).params
+    for key in groom:
+        want = look[key] if key.split(".", 1)[0] in presets.LOOK_GROUPS else groom[key]
+        assert looked[key] == want, key
+    assert label.startswith(str(SINTEL)) and name in label
+    # the same as typing the preset's look values with --set: nothing else is carried
+    changed = {k: v for k, v in presets.look_values(look).items() if v != groom[k]}
+    assert presets.resolve_params(str(SINTEL), as_sets(changed))[0] == looked
+
+
+@needs_sintel
+def test_set_goes_on_top_of_the_look_and_the_order_of_target_and_look_does_not_matter():
+    p, _ = presets.resolve_params(str(SINTEL), ["shape.curl_frequency=2", "scene.groom_cluster=10"], look="curly-1")
+    assert p["shape.curl_frequency"] == 2 and p["shape.curl_amplitude"] == 0.5 and p["scene.groom_cluster"] == 10
+    # --preset alone (or equal to the target) is the target itself, as before
+    assert presets.resolve_params(None, look="curly-1")[0] == presets.resolve_params("curly-1")[0]
+    assert presets.resolve_params("curly-1", look="curly-1")[0] == presets.resolve_params("curly-1")[0]
+
+
+@needs_sintel
+def test_a_preset_holding_a_groom_is_a_groom_target_too(tmp_path):
+    held = write(tmp_path, f'version = 2\n[scene]\ngenerator = "groom"\ngroom_file = {str(SINTEL)!r}\n'
+                           '[camera]\nazimuth = 75.0\n', "sintel.toml")
+    p, _ = presets.resolve_params(str(held), look="fur-ball")
+    assert p["look.model"] == "marschner" and p["camera.azimuth"] == 75.0
+    assert p["scene.groom_file"] == str(SINTEL)
+
+
+@needs_sintel
+def test_a_look_that_cannot_go_on_a_groom_says_why(tmp_path):
+    from app.errors import UsageError
+
+    with pytest.raises(PresetError, match="no bundled preset of that name.*did you mean 'curly-"):
+        presets.resolve_params(str(SINTEL), look="curly-9")
+    with pytest.raises(UsageError, match="two grooms given.*--preset takes a look"):
+        presets.resolve_params(str(SINTEL), look=str(SINTEL.with_name("Bangs_100.hair")))
+    groom_preset = write(tmp_path, f'version = 2\n[scene]\ngenerator = "groom"\ngroom_file = {str(SINTEL)!r}\n')
+    with pytest.raises(UsageError, match=r"is itself a groom \(scene.groom_file = .*sintel_hair.tfx"):
+        presets.resolve_params(str(SINTEL), look=str(groom_preset))
+    with pytest.raises(UsageError, match="two scenes given: 'default' and --preset 'curly-1'.*groom"):
+        presets.resolve_params("default", look="curly-1")
