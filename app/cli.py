@@ -18,7 +18,7 @@ from .errors import UsageError, VfiberError
 from .output import IMAGE_SUFFIXES, OUTPUTS, output_data, output_image, unpremultiplied_rgba, write_output
 from .params import ParamError, Params
 from .params import parse_assignment as parse_cli_assignment
-from .presets import DEFAULT_PRESET, groom_relative_to_preset, resolve_params
+from .presets import DEFAULT_PRESET, LOOK_GROUPS, groom_relative_to_preset, is_groom, resolve_params
 from .scene.grooms import GROOM_SUFFIXES
 from .units import parse_bytes, parse_size
 
@@ -31,11 +31,10 @@ __all__ = ["DEFAULT_PRESET", "GROOM_SUFFIXES", "IMAGE_SUFFIXES", "OUTPUTS", "Usa
 # --------------------------------------------------------------------------------------------------
 # parameters from the command line
 # --------------------------------------------------------------------------------------------------
-def scene_target(args) -> str | None:
-    """The positional target or --preset; both at once must agree (else one would be silently ignored)."""
-    if args.target and args.preset and args.target != args.preset:
-        raise UsageError(f"two scenes given: {args.target!r} and --preset {args.preset!r}; give one")
-    return args.target or args.preset
+def target_params(args) -> tuple[Params, str]:
+    """The parameters of the positional target with ``--preset``'s look on it when the target is a groom
+    (alone, --preset is the target), then ``--set``; see presets.resolve_params. Never silently drops one."""
+    return resolve_params(args.target, args.set, look=args.preset)
 
 
 def source_of(key: str | None, assignments: list[str], label: str) -> str:
@@ -110,7 +109,7 @@ def build_scene_for(p: Params):
 def cmd_render(args) -> int:
     if args.variant:
         return cmd_contact_sheet(args)
-    p, label = resolve_params(scene_target(args), args.set)
+    p, label = target_params(args)
     if args.mode:
         p = p.replace(**{"quality.mode": args.mode})
     size = parse_size(args.size)
@@ -270,7 +269,19 @@ def cmd_contact_sheet(args) -> int:
     if not out.parent.exists():
         raise UsageError(f"{out}: folder {out.parent} does not exist")
     base_target = args.target or args.preset
-    looks = parse_variants(base_target, args.set, args.variant, resolve_params, args.mode)
+    base, _ = resolve_params(args.target, args.set, look=args.preset)   # a bad target fails before any tile
+    on_groom = is_groom(base)
+
+    def resolve_variant(target: str | None, sets: list[str]) -> tuple[Params, str]:
+        """On a groom TARGET a variant's preset is a look on the groom (the groom's strands and camera stay,
+        see presets.LOOK_GROUPS); a variant groom, or any variant of a generated TARGET, is its own scene."""
+        if target == base_target:
+            return resolve_params(args.target, sets, look=args.preset)
+        if on_groom and target is not None and Path(target).suffix.lower() not in GROOM_SUFFIXES:
+            return resolve_params(args.target, sets, look=target)
+        return resolve_params(target, sets)
+
+    looks = parse_variants(base_target, args.set, args.variant, resolve_variant, args.mode)
     t0 = time.perf_counter()
     sheet = render_contact_sheet(looks, parse_size(args.size), out,
                                  progress=lambda n, total, label: print(f"rendering {n}/{total}: {label}",
@@ -283,7 +294,7 @@ def cmd_contact_sheet(args) -> int:
 def cmd_turntable(args) -> int:
     from .turntable import render_turntable
 
-    p, label = resolve_params(args.target or args.preset, args.set)
+    p, label = target_params(args)
     if args.mode:
         p = p.replace(**{"quality.mode": args.mode})
     if args.frames < 1 or args.frames > 3600:
@@ -310,7 +321,7 @@ def cmd_turntable(args) -> int:
 def cmd_info(args) -> int:
     from .info import info_lines
 
-    p, label = resolve_params(scene_target(args), args.set)
+    p, label = target_params(args)
     for line in info_lines(p, build_scene_for(p), label):
         print(line)
     return 0
@@ -338,12 +349,12 @@ def cmd_presets(args) -> int:
 def cmd_view(args) -> int:
     from .viewer.app import run_viewer
 
-    target = args.target or args.preset
     overrides = {}
-    if args.set:
-        resolve_params(target, args.set)     # a bad --set fails here, in one line, before a window opens
+    if args.set or args.preset:   # a bad look or --set fails here, in one line, before a window opens
+        resolve_params(args.target, args.set, look=args.preset)
         overrides = dict(parse_cli_assignment(text) for text in args.set)
-    return run_viewer(target, script=args.script, size=parse_size(args.size), overrides=overrides)
+    target, look = (args.target, args.preset) if args.target else (args.preset, None)
+    return run_viewer(target, script=args.script, size=parse_size(args.size), overrides=overrides, look=look)
 
 
 def cmd_bench(args) -> int:
@@ -382,7 +393,9 @@ def make_parser() -> argparse.ArgumentParser:
     def scene_args(sp):
         sp.add_argument("target", nargs="?", help="preset name or .toml file, or a groom file "
                         f"({' '.join(GROOM_SUFFIXES)})")
-        sp.add_argument("--preset", help="preset name or file (same as the positional argument)")
+        sp.add_argument("--preset", help="preset name or file; alone it is the target. With a groom TARGET it "
+                        f"is a look: the preset's {', '.join(g + '.*' for g in LOOK_GROUPS)} go onto the groom, "
+                        "which keeps its own scene.*, camera.* and quality.* (docs/presets.md)")
         sp.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override a parameter, e.g. --set fibers.rings=20 (repeatable)")
 

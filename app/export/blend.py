@@ -424,6 +424,8 @@ def make_parser() -> argparse.ArgumentParser:
     ap.add_argument("--size", default="640x360", help="render resolution WIDTHxHEIGHT (default 640x360, as vfiber render)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="override a parameter, e.g. --set fibers.rings=20 (repeatable)")
+    ap.add_argument("--preset", dest="look", metavar="LOOK", help="a preset's look on a groom TARGET (its "
+                    "fibers, shape, look and light; the groom keeps its scene and camera; docs/presets.md)")
     return ap
 
 
@@ -441,8 +443,11 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         params, name = Params(json.loads(Path(args.params_json).read_text())), Path(args.output or "scene").stem
     elif args.target:
-        params, _label = resolve_params(args.target, args.set)
+        params, _label = resolve_params(args.target, args.set, look=args.look)
         name = Path(args.target).stem if Path(args.target).suffix else args.target
+    elif args.look:
+        params, _label = resolve_params(None, args.set, look=args.look)
+        name = Path(args.look).stem if Path(args.look).suffix else args.look
     else:
         raise UsageError("export-blend needs a TARGET: a preset name or file, or a groom file")
     out = Path(args.output or f"{name}.blend")

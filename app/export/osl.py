@@ -343,13 +343,19 @@ def make_parser() -> argparse.ArgumentParser:
                     help="write only the parameter set: OUT.json and OUT.params.osl (an OSL parameter block)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="override a parameter, e.g. --set fibers.rings=20 (repeatable)")
+    ap.add_argument("--preset", dest="look", metavar="LOOK", help="with a groom file as PRESET: the shader of "
+                    "this preset's look on the groom, as export-blend embeds it (docs/presets.md)")
     return ap
 
 
-def load_look(target: str, assignments: Sequence[str] = ()) -> tuple[Params, str, str]:
-    """(params, name, description) of a preset plus ``--set`` overrides."""
-    from app.presets import find_preset
+def load_look(target: str, assignments: Sequence[str] = (), look: str | None = None) -> tuple[Params, str, str]:
+    """(params, name, description) of a preset plus ``--set`` overrides; ``look`` (``--preset``) on a groom
+    as every command takes it (presets.resolve_params, which refuses it on anything but a groom)."""
+    from app.presets import find_preset, resolve_params
 
+    if look is not None and look != target:
+        params, _ = resolve_params(target, assignments, look=look)
+        return params, f"{Path(target).stem}-{Path(look).stem}", f"the look of {look} on {target}"
     preset = find_preset(target)
     params = with_assignments(preset.params.values, assignments)
     name = preset.path.stem if preset.path is not None else preset.name
@@ -358,11 +364,11 @@ def load_look(target: str, assignments: Sequence[str] = ()) -> tuple[Params, str
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = make_parser().parse_args(list(sys.argv[1:] if argv is None else argv))
-    if Path(args.preset).suffix.lower() in GROOM_SUFFIXES:
+    if Path(args.preset).suffix.lower() in GROOM_SUFFIXES and not args.look:
         raise _usage_error(f"{args.preset} is a groom file: export-osl writes a look's shader for hand-built "
                            f"containers; for the groom's containers use: vfiber export-blend {args.preset} "
-                           f"-o {Path(args.preset).stem}.blend")
-    params, name, description = load_look(args.preset, args.set)
+                           f"-o {Path(args.preset).stem}.blend (or add --preset LOOK for a look's shader on it)")
+    params, name, description = load_look(args.preset, args.set, args.look)
     if args.params_only:
         out = Path(args.output or f"{name}.json")
         json_path, block_path = export_params(params, out, name, description)
