@@ -131,8 +131,21 @@ class Viewer(WindowLoop, Progressive, SceneLoading, HotReload, Capture):
 
 # --- entry point -------------------------------------------------------------------------------------
 
-def initial_state(target: str | None) -> AppState:
-    """The document the viewer opens with. Raises PresetError/ParamError for a target it cannot use."""
+def initial_state(target: str | None, look: str | None = None) -> AppState:
+    """The document the viewer opens with, ``look`` (``--preset``) on it when it is a groom (as
+    presets.resolve_params does for every command). Raises PresetError/ParamError for a target it cannot
+    use."""
+    state = _initial_document(target)
+    if look is not None and look != target:
+        if not state.on_groom:   # the command line said so already; a caller of the API hears it here
+            raise PresetError(f"--preset {look!r} puts a look on a groom, and {target!r} is not one", source=target)
+        state.apply_look(find_preset(look))
+        state.saved = state.params    # the groom under that look is the document, not an unsaved edit
+        state.clear_history()
+    return state
+
+
+def _initial_document(target: str | None) -> AppState:
     state = AppState()
     if target is None:
         state.saved = state.params
@@ -150,13 +163,15 @@ def initial_state(target: str | None) -> AppState:
 
 
 def run_viewer(target: str | None, *, script: str | None = None, size=(1280, 720),
-               glsl_root: str | None = None, overrides: dict[str, Any] | None = None) -> int:
+               glsl_root: str | None = None, overrides: dict[str, Any] | None = None,
+               look: str | None = None) -> int:
     """Open the viewer on a preset (name or path) or a groom file; returns the process exit code.
 
     ``script``: a TOML/JSON script (see app/viewer/script.py) run one step per frame; the window stays
     open after it unless it ends with ``quit``. Exit codes: 0 fine, 1 no OpenGL window, 2 a bad target
     or script. ``glsl_root``: shaders from another folder (a copy to experiment in; hot reload follows it).
     ``overrides``: ``--set`` values on top of the target (unsaved changes of the opened document).
+    ``look``: a preset whose look goes onto a groom target (``--preset``; see presets.LOOK_GROUPS).
     """
     runner = None
     if script is not None:
@@ -169,7 +184,7 @@ def run_viewer(target: str | None, *, script: str | None = None, size=(1280, 720
         if parsed.size:
             size = parsed.size
     try:
-        state = initial_state(target)
+        state = initial_state(target, look)
         if overrides:
             state.edit_many(overrides, undoable=False)
     except ParamError as e:  # PresetError is a ParamError: the message names file, line, key, value

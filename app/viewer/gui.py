@@ -140,6 +140,11 @@ def _shortcuts(state: AppState, scratch: dict[str, Any]) -> None:
 
 # --- menu bar -----------------------------------------------------------------------------------------
 
+LOOK_TOOLTIP = ("A preset's look on the groom: its fibers, shape, look and light.\n"
+                "The groom keeps its strands (scene), its camera and its quality settings.\n"
+                "File > Open... with a preset does the same while a groom is on screen.")
+
+
 def _menu_bar(state: AppState, scratch: dict[str, Any]) -> float:
     if not imgui.begin_main_menu_bar():
         return 0.0
@@ -147,13 +152,24 @@ def _menu_bar(state: AppState, scratch: dict[str, Any]) -> float:
         if imgui.menu_item_simple("Open...", "Ctrl+O"):
             scratch["open_popup"] = "Open preset"
         names = bundled_names()
+        if state.on_groom:   # on a groom a preset is a look: the groom's strands and camera stay
+            if imgui.begin_menu("Apply bundled look", bool(names)):
+                imgui.text_disabled("the groom keeps its strands, camera and quality")
+                imgui.separator()
+                for name in names:
+                    if imgui.menu_item_simple(name, "", name == state.look_name):
+                        state.open(name)
+                    imgui.set_item_tooltip(LOOK_TOOLTIP)
+                imgui.end_menu()
         if imgui.begin_menu("Open bundled preset", bool(names)):
             for name in names:
                 if imgui.menu_item_simple(name):
-                    state.open(name)
+                    state.open(name, whole=True)
             imgui.end_menu()
         if not names:
             imgui.set_item_tooltip("no bundled presets installed yet (presets/*.toml)")
+        elif state.on_groom:
+            imgui.set_item_tooltip("the whole preset, its own scene and camera: leaves the groom")
         imgui.separator()
         if imgui.menu_item_simple("Save", "Ctrl+S"):
             if state.preset_path is None:
@@ -733,7 +749,9 @@ def _dialogs(state: AppState, scratch: dict[str, Any]) -> None:
             imgui.close_current_popup()
         imgui.end_popup()
 
-    _path_dialog(state, scratch, "Open preset", "Open", _default_dir(state), _do_open, list_files=True)
+    _path_dialog(state, scratch, "Open preset", "Open", _default_dir(state), _do_open, list_files=True,
+                 note=("a groom is on screen: a preset opened here is a look on it (fibers, shape, look, light); "
+                       "the strands and camera stay") if state.on_groom else "")
     _save_as_dialog(state, scratch, center, auto)
     _screenshot_dialog(state, scratch, center, auto)
     _turntable_dialog(state, scratch, center, auto)
@@ -750,6 +768,7 @@ def _default_dir(state: AppState) -> str:
 
 
 def _do_open(state: AppState, path: str) -> None:
+    """A groom goes under the look on screen; a preset, while a groom is on screen, is a look on it."""
     if is_groom_path(path):
         state.open_groom(path)
     else:
@@ -757,7 +776,7 @@ def _do_open(state: AppState, path: str) -> None:
 
 
 def _path_dialog(state: AppState, scratch: dict[str, Any], name: str, verb: str, default: str,
-                 action: Callable[[AppState, str], None], list_files: bool = False) -> None:
+                 action: Callable[[AppState, str], None], list_files: bool = False, note: str = "") -> None:
     center = imgui.get_main_viewport().get_center()
     imgui.set_next_window_pos(center, imgui.Cond_.appearing, imgui.ImVec2(0.5, 0.5))
     imgui.set_next_window_size(imgui.ImVec2(620 * _ui_scale(), 0), imgui.Cond_.appearing)
@@ -770,6 +789,10 @@ def _path_dialog(state: AppState, scratch: dict[str, Any], name: str, verb: str,
         imgui.set_keyboard_focus_here()
     imgui.set_next_item_width(-1)
     entered, scratch[key] = imgui.input_text("##path", scratch[key], imgui.InputTextFlags_.enter_returns_true)
+    if note:
+        imgui.push_text_wrap_pos(0.0)
+        imgui.text_disabled(note)
+        imgui.pop_text_wrap_pos()
     if list_files:
         folder = Path(scratch[key]).expanduser()
         folder = folder if folder.is_dir() else folder.parent

@@ -6,9 +6,11 @@ A script is a TOML or JSON file (by extension; JSON may also be a bare list of s
     steps = [
       { open = "presets/carpet.toml" },      # preset path or bundled name (discard = true by default;
                                              # discard = false asks, and { answer = ... } replies)
-      { bundled = "carpet" },                # File > Open bundled preset
+      { bundled = "carpet" },                # File > Open bundled preset; while a groom is on screen a
+                                             # preset (open or bundled) is a look on it, File > Apply
+                                             # bundled look (whole = true: the whole preset, groom left)
       { revert = true },                     # File > Revert
-      { open_groom = "hair/Bangs_100.hair" },    # a groom under the current look
+      { open_groom = "hair/Bangs_100.hair" },    # a groom under the current look (its own camera)
       { set = { "fibers.rings" = 20, "look.color" = [0.8, 0.5, 0.3] } },   # as sliders would
       { wait = 3 },                          # frames shown on screen
       { wait_seconds = 0.5 },
@@ -73,7 +75,7 @@ ACTIONS = ("open", "set", "wait", "wait_final", "screenshot", "grab", "save", "v
            "bundled", "open_groom", "wait_seconds", "viewer", "wait_for", "resize", "mouse", "export_osl", "pin",
            "render_turntable", "render_anyway")
 OPTIONS = {"size", "view", "name", "description", "button", "shift", "ctrl", "frames", "values",
-           "quality", "discard", "prefix", "timeout", "final", "ui", "alpha"}
+           "quality", "discard", "prefix", "timeout", "final", "ui", "alpha", "whole"}
 WAIT_FINAL_TIMEOUT_S = 300.0
 
 
@@ -236,11 +238,11 @@ class ScriptRunner:
             state.edit_many(arg)
             state.end_gesture()
         elif action == "open":
-            state.open(str(arg), discard=step.get("discard", True))
+            state.open(str(arg), discard=step.get("discard", True), whole=bool(step.get("whole")))
         elif action == "open_groom":
             state.open_groom(str(arg))
         elif action == "bundled":
-            state.open(str(arg), discard=step.get("discard", True))
+            state.open(str(arg), discard=step.get("discard", True), whole=bool(step.get("whole")))
         elif action == "revert":
             state.revert(discard=step.get("discard", True))
         elif action == "answer":

@@ -25,7 +25,8 @@ from pathlib import Path
 from typing import Any
 
 from ..params import BY_KEY, SPEC, ParamError, Params, max_fiber_radius, suggest
-from ..presets import PresetError, Preset, find_preset, load_preset, save_preset
+from ..presets import (LOOK_GROUPS, Preset, PresetError, apply_look, find_preset, is_groom, load_preset,
+                       save_preset)
 # the explicit baseline's own allocation, so the viewer and `vfiber info` show one figure
 from ..render.explicit import EXPLICIT_FORMULA, explicit_bytes  # noqa: F401 - the viewer's names for them
 from ..scene.grooms import GROOM_SUFFIXES
@@ -118,6 +119,7 @@ class AppState:
     preset_path: Path | None = None
     preset_name: str = ""
     preset_description: str = ""
+    look_name: str = ""                  # the preset whose look was last put on the groom (File > Apply look)
     view: ViewSettings = field(default_factory=ViewSettings)
     stats: Stats = field(default_factory=Stats)
 
@@ -373,9 +375,43 @@ class AppState:
             return  # saving failed (no path, or an error dialog): do not discard
         pending.action()
 
-    def open(self, target: str | os.PathLike[str], *, discard: bool = False) -> bool:
-        """Open a preset file (or a bundled preset by name). Asks before discarding changes."""
+    @property
+    def on_groom(self) -> bool:
+        """A groom's strands are on screen (a groom file, or a preset holding one)."""
+        return is_groom(self.params)
+
+    def open(self, target: str | os.PathLike[str], *, discard: bool = False, whole: bool = False) -> bool:
+        """Open a preset file (or a bundled preset by name). Asks before discarding changes. While a groom is
+        on screen a preset without a groom of its own is a look: it goes onto the groom (``apply_look``), the
+        groom's strands and camera stay; ``whole`` opens it as its own scene instead."""
+        if self.on_groom and not whole:
+            try:
+                preset = find_preset(target)
+            except PresetError as e:
+                self.show_error(str(e), e.key)
+                return False
+            if not is_groom(preset.params):
+                return self.apply_look(preset)
         return self.guard(f"Open {target}", lambda: self._open_now(target), discard)
+
+    def apply_look(self, preset: Preset) -> bool:
+        """The preset's look (presets.LOOK_GROUPS: fibers, shape, look, light) on what is on screen, as one
+        undoable edit; the scene, camera and quality stay, so the groom neither moves nor changes."""
+        new = apply_look(self.params, preset.params)
+        for key in [k for k in (*self.pending, *self.errors, *self.notes) if k.split(".", 1)[0] in LOOK_GROUPS]:
+            self.pending.pop(key, None)
+            self.errors.pop(key, None)
+            self.notes.pop(key, None)
+        self.look_name = preset.name or (Path(preset.path).stem if preset.path else "")
+        self.status = (f"the look of {self.look_name} on {self.display_name}: its fibers, shape, look and light; "
+                       "the strands, camera and quality stay")
+        if new == self.params:
+            return True
+        self.begin_gesture()
+        self._push_undo()
+        self.end_gesture()
+        self._set_params(new, edited=True)
+        return True
 
     def _open_now(self, target: str | os.PathLike[str]) -> bool:
         try:
@@ -398,24 +434,28 @@ class AppState:
         self.preset_path = Path(preset.path) if preset.path else None
         self.preset_name = preset.name
         self.preset_description = preset.description
+        self.look_name = ""
         self._set_params(preset.params, edited=True)
 
     def open_groom(self, path: str | os.PathLike[str]) -> bool:
-        """Put a groom file's strands under the current look: scene.generator = 'groom' with the file,
-        as one undoable edit (the look, fibers and quality stay, so a look can be tried on a groom)."""
+        """Put a groom file's strands under the current look, as one undoable edit: the groom's own scene,
+        camera (framing it) and quality with the look on screen (``apply_look``), so ``vfiber view GROOM
+        --preset LOOK`` and opening GROOM while LOOK is on screen show the same."""
         absolute = str(Path(path).expanduser().resolve())
         if not Path(absolute).is_file():
             self.show_error(f"no groom file {str(path)!r}", "scene.groom_file")
             return False
-        self.begin_gesture()
-        changed = self.edit_many({"scene.generator": "groom", "scene.groom_file": absolute})
-        self.end_gesture()
-        if "scene.generator" in self.errors:
-            self.show_error(self.errors["scene.generator"], "scene.generator")
-            return False
-        self.frame_all()
+        new = apply_look(Params({"scene.generator": "groom", "scene.groom_file": absolute}), self.params)
+        for key in [k for k in (*self.pending, *self.errors) if k.split(".", 1)[0] not in LOOK_GROUPS]:
+            self.pending.pop(key, None)   # a half-typed scene value belonged to the scene that goes
+            self.errors.pop(key, None)
         self.status = f"groom {Path(path).name}"
-        return changed or self.params["scene.groom_file"] == absolute
+        if new != self.params:
+            self.begin_gesture()
+            self._push_undo()
+            self.end_gesture()
+            self._set_params(new, edited=True)
+        return True
 
     def save(self) -> bool:
         """Save to the current file; without one, ask for a path (the gui opens Save As)."""
@@ -473,7 +513,7 @@ class AppState:
             "last_error": self.last_error, "last_error_key": self.last_error_key,
             "errors": dict(self.errors), "pending": {k: _jsonable(v) for k, v in self.pending.items()},
             "notes": dict(self.notes), "scene_error": self.scene_error, "shader_error": self.shader_error,
-            "status": self.status, "view": self.view.view, "compare": self.view.compare,
+            "status": self.status, "look": self.look_name, "view": self.view.view, "compare": self.view.compare,
             "pinned": self.pinned_name, "shown_controls": list(self.scratch.get("shown_controls", [])),
             "confirm": self.confirm.message if self.confirm else None,
             "params": {k: _jsonable(v) for k, v in self.params.values.items()},

@@ -768,3 +768,123 @@ def test_a_slow_look_shows_its_estimate_and_its_final_frame_waits_for_render_any
     assert got["drawing"][1] == "final" or got["label"][3].startswith("final"), (got["drawing"], got["label"])
     assert got["estimate"][2] == "" and got["final_held"][4] is False
     assert got["gl_error"] == [[]]
+
+
+# --------------------------------------------------------------------------------------------------
+# a preset's look on a groom (issue 15)
+
+SINTEL = HAIR_DATA / "sintel_hair.tfx"
+needs_sintel = pytest.mark.skipif(not SINTEL.exists(), reason=f"{SINTEL} not present")
+
+
+@needs_sintel
+def test_a_preset_picked_while_a_groom_is_on_screen_is_a_look_on_it(tmp_path):
+    from app.presets import apply_look, find_preset
+    from app.viewer.app import initial_state
+
+    s = initial_state(str(SINTEL))
+    s.set_camera(azimuth=75.0, distance=2.5)             # the artist has framed the groom
+    before = s.params
+    assert s.open("curly-1")                             # File > Apply bundled look > curly-1
+    assert s.params == apply_look(before, find_preset("curly-1").params)
+    assert {k: v for k, v in s.params.values.items() if k.startswith(("scene.", "camera.", "quality."))} == \
+           {k: v for k, v in before.values.items() if k.startswith(("scene.", "camera.", "quality."))}
+    assert s.params["shape.curl_amplitude"] == 0.5 and s.look_name == "curly-1" and s.dirty
+    assert "curly-1" in s.status and s.report()["look"] == "curly-1"
+    assert s.undo() and s.params == before                # one undoable step
+    held = tmp_path / "held.toml"                         # a preset with a groom of its own opens whole
+    held.write_text(f'version = 2\n[scene]\ngenerator = "groom"\ngroom_file = {str(SINTEL)!r}\n'
+                    '[look]\nroughness = 0.9\n[camera]\nazimuth = -20.0\n')
+    assert s.open(held, discard=True) and s.params["camera.azimuth"] == -20.0 and s.preset_path == held
+    assert s.open("carpet", whole=True, discard=True)    # File > Open bundled preset: leaves the groom
+    assert s.params == find_preset("carpet").params and not s.on_groom
+
+
+@needs_sintel
+def test_a_groom_opened_under_a_look_keeps_the_look_and_frames_the_groom():
+    from app.presets import resolve_params
+    from app.viewer.app import initial_state
+
+    s = initial_state("curly-1")
+    s.set_camera(azimuth=120.0)
+    assert s.open_groom(SINTEL)
+    want, _ = resolve_params(str(SINTEL), look="curly-1")
+    assert s.params == want                              # == vfiber view SINTEL --preset curly-1
+    opened = initial_state(str(SINTEL), "curly-1")
+    assert opened.params == want and not opened.dirty and opened.look_name == "curly-1"
+    assert s.undo() and s.params == initial_state("curly-1").params.replace(**{"camera.azimuth": 120.0})
+
+
+@needs_xvfb
+@needs_sintel
+def test_a_look_applied_in_a_session_shows_on_the_groom(tmp_path):
+    """Scripted: sintel on screen, File > Apply bundled look > curly-1: the window changes, the offscreen
+    picture is the command line's `render SINTEL --preset curly-1`, the camera and scene stay."""
+    from app.cli import main as cli
+    from app.presets import resolve_params
+
+    t = tmp_path
+    steps = [
+        {"viewer": {"show_stats": False}},
+        {"wait_final": True},
+        {"grab": str(t / "groom.png"), "final": True},
+        {"print": "params"},
+        {"bundled": "curly-1"},
+        {"wait": 2},
+        {"wait_final": True},
+        {"grab": str(t / "look.png"), "final": True},
+        {"screenshot": str(t / "shot.png"), "size": [96, 54]},
+        {"print": "params"},
+        {"print": "look"},
+        {"print": "gl_error"},
+        {"quit": 0},
+    ]
+    lines, err, rc = _viewer({"size": [480, 300], "steps": steps}, tmp_path, str(SINTEL))
+    assert rc == 0, err
+    got = _merged(lines)
+    assert got["gl_error"] == [[]] and got["look"] == ["curly-1"]
+    groom, look = _png(t / "groom.png"), _png(t / "look.png")
+    assert groom.shape == look.shape
+    assert (np.abs(groom - look).max(axis=2) > 30).mean() > 0.02          # the look shows in the window
+    shot_params = got["params"][1]
+    want, _ = resolve_params(str(SINTEL), look="curly-1")
+    assert shot_params == {k: list(v) if isinstance(v, tuple) else v for k, v in want.values.items()}
+    for k, v in got["params"][0].items():
+        if k.startswith(("scene.", "camera.")):
+            assert shot_params[k] == v, k
+    assert cli(["render", str(SINTEL), "--preset", "curly-1", "--size", "96x54", "-o", str(t / "cli.png")]) == 0
+    assert np.array_equal(_png(t / "shot.png"), _png(t / "cli.png"))
+
+
+@needs_xvfb
+@needs_sintel
+def test_view_takes_preset_as_a_look_on_a_groom(tmp_path):
+    from app.presets import resolve_params
+
+    path = tmp_path / "s.json"
+    path.write_text(json.dumps({"size": [320, 200], "steps": [{"print": "params"}, {"print": "dirty"},
+                                                              {"quit": 0}]}))
+    cmd = [XVFB, "-a", "-s", "-screen 0 1280x1024x24", sys.executable, "-m", "app.cli", "view", "--preset",
+           "curly-1", str(SINTEL), "--set", "look.roughness=0.5", "--script", str(path)]
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    proc = subprocess.run(cmd, cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    got = _merged([json.loads(x[len(PREFIX):]) for x in proc.stdout.splitlines() if x.startswith(PREFIX)])
+    want, _ = resolve_params(str(SINTEL), ["look.roughness=0.5"], look="curly-1")
+    assert got["params"][0] == {k: list(v) if isinstance(v, tuple) else v for k, v in want.values.items()}
+    assert got["dirty"] == [True]        # the --set is an unsaved change; the look on the groom is the document
+
+
+@needs_xvfb
+@needs_sintel
+def test_the_file_menu_applies_a_look_to_the_groom_by_mouse(tmp_path):
+    """Real clicks through imgui: File > Apply bundled look > curly-1 (coordinates for imgui's default font at
+    scale 1 in a 640x400 window: File at the top left, the submenu's second preset at y = 90)."""
+    clicks = [[18, 8], [18, 8, "down"], [18, 8, "up"], [18, 8], [40, 50], [60, 50], [70, 50], [70, 50],
+              [200, 50], [300, 52], [320, 70], [330, 90], [330, 90], [330, 90, "down"], [330, 90, "up"], [330, 90]]
+    steps = [{"wait": 3}, {"mouse": clicks}, {"wait": 3}, {"print": "look"}, {"print": "params"}, {"quit": 0}]
+    lines, err, rc = _viewer({"size": [640, 400], "steps": steps}, tmp_path, str(SINTEL))
+    assert rc == 0, err
+    got = _merged(lines)
+    assert got["look"] == ["curly-1"], "the click did not reach File > Apply bundled look > curly-1"
+    assert got["params"][0]["shape.curl_amplitude"] == 0.5 and got["params"][0]["scene.generator"] == "groom"
