@@ -268,17 +268,17 @@ def cmd_contact_sheet(args) -> int:
     out = Path(args.output_file)
     if not out.parent.exists():
         raise UsageError(f"{out}: folder {out.parent} does not exist")
-    base_target = args.target or args.preset
-    base, _ = resolve_params(args.target, args.set, look=args.preset)   # a bad target fails before any tile
+    base_target, base_look = (args.target, args.preset) if args.target else (args.preset, None)
+    base, _ = resolve_params(base_target, args.set, look=base_look)   # a bad target fails before any tile
     on_groom = is_groom(base)
 
     def resolve_variant(target: str | None, sets: list[str]) -> tuple[Params, str]:
         """On a groom TARGET a variant's preset is a look on the groom (the groom's strands and camera stay,
         see presets.LOOK_GROUPS); a variant groom, or any variant of a generated TARGET, is its own scene."""
         if target == base_target:
-            return resolve_params(args.target, sets, look=args.preset)
+            return resolve_params(base_target, sets, look=base_look)
         if on_groom and target is not None and Path(target).suffix.lower() not in GROOM_SUFFIXES:
-            return resolve_params(args.target, sets, look=target)
+            return resolve_params(base_target, sets, look=target)
         return resolve_params(target, sets)
 
     looks = parse_variants(base_target, args.set, args.variant, resolve_variant, args.mode)
@@ -416,7 +416,8 @@ def make_parser() -> argparse.ArgumentParser:
     r.add_argument("--variant", action="append", default=[], metavar="LOOK",
                    help="write a labelled contact sheet, one tile per --variant: a preset or groom and/or "
                         "key=value changes on top of TARGET, e.g. --variant curly-1 --variant "
-                        "'look.model=marschner look.roughness=0.2' (repeatable)")
+                        "'look.model=marschner look.roughness=0.2' (repeatable); on a groom TARGET a preset "
+                        "is a look on the groom, as --preset")
     r.set_defaults(func=cmd_render)
 
     t = sub.add_parser("turntable", help="render the camera orbiting the hair: a PNG sequence (and a video "

@@ -225,6 +225,10 @@ def test_a_contact_sheet_of_a_groom_shows_each_look_on_the_groom(tmp_path):
         one = tmp_path / "one.png"
         assert main(["render", str(SINTEL), *single, "--size", f"{w}x{h}", "-o", str(one)]) == 0
         assert np.array_equal(sheet[y:y + h, x:x + w], _rgb(one)), single   # the tile is the look on the groom
+    again = tmp_path / "again.png"                     # the groom given as --preset alone is the same TARGET
+    assert main(["render", "--preset", str(SINTEL), "--size", "96x54", "-o", str(again)]
+                + [a for v in variants for a in ("--variant", v)]) == 0
+    assert np.array_equal(_rgb(again), sheet)
 
 
 @pytest.mark.parametrize("argv,part", [
