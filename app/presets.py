@@ -504,8 +504,10 @@ DEFAULT_PRESET = "default"   # the look a command without a target renders
 # density). Every look value is relative to the container it sits in (fiber_radius and curl_amplitude are
 # fractions of the container and ring radius, twist and curl count turns per container length), so a look made
 # on a generated cylinder means the same on a groom's strand containers.
+# A new parameter group must be put in one of the two (tests/test_presets.py fails until it is): strand
+# controls such as tip taper or frizz are the look; a control that decides which containers exist is the shot.
 LOOK_GROUPS: tuple[str, ...] = ("fibers", "shape", "look", "light")
-SHOT_GROUPS: tuple[str, ...] = tuple(g for g in GROUPS if g not in LOOK_GROUPS)
+SHOT_GROUPS: tuple[str, ...] = ("scene", "camera", "quality")
 
 
 def look_values(params: Params) -> dict[str, Any]:
