@@ -175,6 +175,15 @@ SPEC: tuple[Param, ...] = (
     P("look.melanin", float, 0.5, "melanin concentration (0 white, 1 black), as in Cycles' Principled "
       "Hair", 0.0, 1.0),
     P("look.melanin_redness", float, 0.3, "fraction of pheomelanin", 0.0, 1.0),
+    P("look.color_source", str, "look", "look: every strand takes the look's colour; file: strands take the "
+      "groom file's own colours where it stores them (root to tip per strand)", choices=("look", "file")),
+    P("look.tip_blend", float, 0.0, "how far the tips take the tip colour (0 = one colour root to tip, 1 = "
+      "tips fully the tip colour)", 0.0, 1.0),
+    P("look.tip_start", float, 0.5, "where along the strand the blend toward the tip colour begins (0 root, "
+      "1 tip); it is complete at the tip", 0.0, 1.0),
+    P("look.tip_color", tuple, (0.85, 0.72, 0.52), "tip colour (linear RGB), e.g. sun-bleached ends", 0.0, 1.0),
+    P("look.tip_melanin", float, 0.2, "melanin at the tips when colour comes from melanin (redness as at the "
+      "root)", 0.0, 1.0),
     P("look.roughness", float, 0.35, "longitudinal roughness", 0.02, 1.0),
     P("look.tint_variation", float, 0.15, "random per-fiber colour variation", 0.0, 1.0),
     P("look.roughness_variation", float, 0.1, "random per-fiber roughness variation", 0.0, 1.0),

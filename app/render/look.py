@@ -43,6 +43,42 @@ def base_color(p: Params) -> tuple[float, float, float]:
     return tuple(float(v) for v in p["look.color"])
 
 
+def tip_color(p: Params) -> tuple[float, float, float]:
+    """The colour a strand blends to toward its tip: ``look.tip_color``, or in melanin mode the colour of
+    ``look.tip_melanin`` at the root's redness (the same conversion as :func:`base_color`)."""
+    if p["look.color_mode"] == "melanin":
+        c = sigma_to_color(melanin_to_sigma(p["look.tip_melanin"], p["look.melanin_redness"]))
+        return tuple(float(v) for v in c)
+    return tuple(float(v) for v in p["look.tip_color"])
+
+
+def tip_weight(v, blend: float, start: float):
+    """How much of the tip colour a fiber shows at guide parameter ``v`` (0 root .. 1 tip): 0 up to
+    ``start``, then a smoothstep to ``blend`` at the tip. Twin: glsl/shading/fiber_color.glsl tip_weight.
+    ``start`` = 1 gives 0 everywhere (the divisor's floor keeps it finite)."""
+    t = np.clip((np.asarray(v, np.float64) - start) / max(1.0 - start, 1e-4), 0.0, 1.0)
+    return blend * t * t * (3.0 - 2.0 * t)
+
+
+def fiber_color(v, tint, p: Params, root=None, tip_file=None) -> np.ndarray:
+    """Linear albedo of fibers at guide parameter ``v`` with per-fiber tint key ``tint`` in [-0.5, 0.5]
+    (broadcast together; returns (..., 3)). ``root``/``tip_file``: the groom file's colours of the fiber's
+    guide at its root and tip ((..., 3), from ``Scene.guide_colors``) when ``look.color_source`` = file;
+    they replace the look's colour along the strand, linearly from root to tip. The look's tip blend then
+    goes toward :func:`tip_color` on top, and the random tint scales the result.
+    Twin: glsl/shading/fiber_color.glsl fiber_color (the shader mixes in float32)."""
+    v = np.asarray(v, np.float64)
+    tint = np.asarray(tint, np.float64)
+    base = np.asarray(base_color(p), np.float64)
+    if root is not None:
+        root = np.asarray(root, np.float64)
+        tip_file = root if tip_file is None else np.asarray(tip_file, np.float64)
+        base = root + (tip_file - root) * v[..., None]
+    w = tip_weight(v, p["look.tip_blend"], p["look.tip_start"])[..., None]
+    c = base + (np.asarray(tip_color(p), np.float64) - base) * w
+    return np.clip(c * (1.0 + p["look.tint_variation"] * 2.0 * tint[..., None]), 0.0, 1.0)
+
+
 def fiber_density(p: Params, fibers_per_container: int) -> float:
     """Fiber cross-section met per unit length of a light path in unit space (container radius 1):
     fibers per unit area times fiber diameter. Drives the density self-shadow estimate."""

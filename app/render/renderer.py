@@ -130,6 +130,8 @@ class Renderer:
                          "nodes": self.ctx.buffer(self.bvh.nodes.tobytes()),
                          "order": self.ctx.buffer(np.maximum(self.bvh.order, 0).astype(np.uint32).tobytes()
                                                   if scene.n_segments else bytes(4))}
+        if scene.guide_colors is not None:      # the groom file's colours, two vec4 per guide
+            self._buffers["guide_colors"] = self.ctx.buffer(scene.guide_color_rows().tobytes())
 
     @property
     def scene_gpu_bytes(self) -> int:
@@ -244,6 +246,8 @@ class Renderer:
             "uSceneFromCamera": tuple(self.scene.origin - cam.position),
             "uLightDir": tuple(light_direction(p)), "uLightIntensity": p["look.light_intensity"],
             "uAmbient": p["look.ambient"], "uBaseColor": look.base_color(p), "uRoughness": p["look.roughness"],
+            "uTipColor": look.tip_color(p), "uTipBlend": p["look.tip_blend"], "uTipStart": p["look.tip_start"],
+            "uGuideColors": int(p["look.color_source"] == "file" and self.scene.guide_colors is not None),
             "uExposureScale": 2.0 ** p["look.exposure"], "uFiberDensity": look.fiber_density(p, lay.fibers_per_container),
             "uTintVariation": p["look.tint_variation"], "uRoughnessVariation": p["look.roughness_variation"],
             "uShadowDensity": p["look.shadow_density"],
@@ -310,6 +314,11 @@ class Renderer:
         self._buffers["order"].bind_to_storage_buffer(1)
         self._buffers["segments"].bind_to_storage_buffer(2)
         self._progress.bind_to_storage_buffer(3)
+        self._bind_guide_colors()
+
+    def _bind_guide_colors(self) -> None:
+        # without file colours the shader never reads binding 4 (uGuideColors = 0); something valid is bound
+        self._buffers.get("guide_colors", self._buffers["segments"]).bind_to_storage_buffer(4)
 
     def _coverage(self, p: Params, cam: Camera, size) -> None:
         """Depth 0 where some node box of a coarse level of the hierarchy projects (coverage.vert), 1
@@ -414,6 +423,7 @@ class Renderer:
         """Draw every container's proxy once per range of ``draw_ranges``; the depth test keeps the
         nearest hit across containers and ranges. Returns the draw count."""
         vao = self._proxy_vao(prog)
+        self._bind_guide_colors()
         ranges = draw_ranges(p, self.scene, mode, rays)
         if "uRingOrder" in prog:
             prog["uRingOrder"].value = int(len(ranges) > 1 or needs_ring_order(p, self.scene, mode, rays))
@@ -800,9 +810,10 @@ def release_framebuffers(parking: moderngl.Framebuffer, targets: dict) -> None:
 
 
 def scene_gpu_bytes(scene: Scene) -> int:
-    """What ``Renderer.set_scene`` allocates for ``scene``: the segments, the hierarchy's boxes and order,
-    the shared proxy rectangle."""
-    return max(scene.nbytes, 80) + bvh_nbytes(scene.n_segments) + _QUAD.nbytes
+    """What ``Renderer.set_scene`` allocates for ``scene``: the segments, the per-guide colours (a groom
+    file's, where it has them), the hierarchy's boxes and order, the shared proxy rectangle."""
+    return (max(scene.segments.nbytes, 80) + scene.guide_color_bytes + bvh_nbytes(scene.n_segments)
+            + _QUAD.nbytes)
 
 
 def proxy_layers(scene: Scene, cam: Camera, size: tuple[int, int], grid: int = 64) -> float:

@@ -141,16 +141,30 @@ def _packed(polylines) -> tuple[np.ndarray, np.ndarray]:
     return (np.concatenate(arrays) if arrays else np.zeros((0, 3))), counts
 
 
+GUIDE_COLOR_FLOATS = 8  # per guide: root rgb, 0, tip rgb, 0 (two std430 vec4: glsl/shading/fiber_color.glsl)
+
+
 @dataclass
 class Scene:
     segments: np.ndarray                         # (N, SEGMENT_FLOATS) float32
     origin: np.ndarray = field(default_factory=lambda: np.zeros(3))  # float64 world position of the anchor
     name: str = "scene"
     n_guides: int = 0
+    # Per guide, never per fiber: the groom file's linear colour at the guide's root and tip, (n_guides, 2, 3)
+    # float32, or None where the source has no colours (generators, most groom files).
+    guide_colors: np.ndarray | None = None
 
     def __post_init__(self):
         self.segments = np.ascontiguousarray(self.segments, dtype=np.float32).reshape(-1, SEGMENT_FLOATS)
         self.origin = np.asarray(self.origin, dtype=np.float64).reshape(3)
+        if self.guide_colors is not None:
+            colors = np.ascontiguousarray(self.guide_colors, dtype=np.float32)
+            guides = int(self.segments[:, 19].max()) + 1 if len(self.segments) else 0
+            if colors.ndim != 3 or colors.shape[1:] != (2, 3) or len(colors) < guides:
+                raise ValueError(f"guide_colors must be (guides, 2, 3) for {guides} guides, not {colors.shape}")
+            if not np.isfinite(colors).all():
+                raise ValueError("guide_colors holds a non-finite value")
+            self.guide_colors = np.clip(colors, 0.0, 1.0)
 
     @property
     def n_segments(self) -> int:
@@ -158,7 +172,19 @@ class Scene:
 
     @property
     def nbytes(self) -> int:
-        return int(self.segments.nbytes)
+        return int(self.segments.nbytes) + self.guide_color_bytes
+
+    @property
+    def guide_color_bytes(self) -> int:
+        """Bytes of the per-guide colour buffer on the GPU (0 without file colours)."""
+        return 0 if self.guide_colors is None else len(self.guide_colors) * GUIDE_COLOR_FLOATS * 4
+
+    def guide_color_rows(self) -> np.ndarray:
+        """The per-guide colours as the shader reads them: (guides, GUIDE_COLOR_FLOATS) float32."""
+        out = np.zeros((0 if self.guide_colors is None else len(self.guide_colors), 2, 4), np.float32)
+        if self.guide_colors is not None:
+            out[:, :, :3] = self.guide_colors
+        return out.reshape(-1, GUIDE_COLOR_FLOATS)
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """World-space (float64) bounding box of all containers, radii included."""
@@ -170,7 +196,8 @@ class Scene:
 
     def translated(self, offset) -> "Scene":
         """The same scene moved in world space: only the float64 origin changes, never the float32 data."""
-        return Scene(self.segments.copy(), self.origin + np.asarray(offset, np.float64), self.name, self.n_guides)
+        return Scene(self.segments.copy(), self.origin + np.asarray(offset, np.float64), self.name, self.n_guides,
+                     None if self.guide_colors is None else self.guide_colors.copy())
 
     @staticmethod
     def from_polylines(polylines: list[np.ndarray], radii, *, taper: float = 0.0, name: str = "scene",

@@ -1,4 +1,5 @@
-// fiber_shading.glsl: the colour, normal and ids of a fiber hit, and the light that reaches it.
+// fiber_shading.glsl: the colour, normal and ids of a fiber hit, and the light that reaches it
+// (the fiber's albedo along its strand: fiber_color.glsl).
 //   Shaded shade_fiber_hit(Segment seg, UnitRay ur, FiberHit hit, vec3 rd, uint segIndex, bool shade)
 //   float  light_transmittance(Segment seg, UnitRay ur, FiberHit hit, vec3 L)
 // SHADING_MODEL 0 Kajiya-Kay, 1 Marschner; SHADOW_MODE 0 off, 1 density estimate, 2 traced shadow ray
@@ -12,6 +13,7 @@
 #include "shading/light.glsl"
 #include "shading/kajiya_kay.glsl"
 #include "shading/marschner.glsl"
+#include "shading/fiber_color.glsl"
 
 #ifndef SHADING_MODEL
 #define SHADING_MODEL 0
@@ -20,9 +22,7 @@
 #define SHADOW_MODE 1
 #endif
 
-uniform vec3 uBaseColor;        // linear; from RGB or from melanin (app/render/look.py)
 uniform float uRoughness;
-uniform float uTintVariation;
 uniform float uRoughnessVariation;
 uniform float uShadowDensity;
 uniform float uFiberDensity;    // fiber cross-section per unit length of a light path, unit space
@@ -115,7 +115,7 @@ Shaded shade_fiber_hit(Segment seg, UnitRay ur, FiberHit hit, vec3 rd, uint segI
     uint key = fiber_key(uSeed, seg.guide, uint(hit.ring), uint(hit.fiber));
     float tint = key_random(key, CH_TINT) - 0.5;
     float rough = key_random(key, CH_ROUGH) - 0.5;
-    vec3 color = clamp(uBaseColor * (1.0 + uTintVariation * 2.0 * tint), 0.0, 1.0);
+    vec3 color = fiber_color(seg.guide, unit_to_v(seg, P.z), tint);
     float roughness = clamp(uRoughness * (1.0 + uRoughnessVariation * 2.0 * rough), 0.02, 1.0);
     // fibers deep in the container see less of the sky
     float occlusion = mix(1.0, exp(-3.0 * (1.0 - length(hit.c))), uShadowDensity);

@@ -14,7 +14,7 @@ import numpy as np
 from ...params import Params
 from .. import containers
 from ..containers import Scene
-from .groom import Groom, GroomError
+from .groom import Groom, GroomError, guide_colors
 from .guides import resample_many, strands_to_guides
 from .load import load_groom
 from .segments import MAX_TURN_DEG, auto_segments, chord_errors, joint_turns
@@ -65,9 +65,11 @@ def groom_scene(groom: Groom, p: Params, seconds: dict[str, float] | None = None
         radius_reason = (f"covers 90% of each cluster's strands, at least the root-spacing radius {floor:.4g} "
                          f"(scene.radius is not used for grooms)")
         cluster_used = cluster
+        labels = guides.labels
     else:
         fine, radii = [groom.strands[i] for i in kept], np.full(len(kept), floor)
         cluster_used = 0
+        labels = base.labels
     if len(fine) > containers.MAX_GUIDES:
         raise GroomError(f"{name}: {len(fine):,} guides is more than the renderer's {containers.MAX_GUIDES:,}; set "
                          f"scene.groom_cluster to make fewer")
@@ -108,7 +110,8 @@ def groom_scene(groom: Groom, p: Params, seconds: dict[str, float] | None = None
         guides=len(polylines), segments=n, segments_reason=reason, native=native, chord_p95=p95,
         radius_reason=radius_reason, radii=radii, seconds=seconds, warnings=warnings,
         max_turn=float(turns.max()) if turns.size else 0.0)
-    return GroomScene(rows, origin, groom.path.stem, len(polylines), source=source, params=p)
+    return GroomScene(rows, origin, groom.path.stem, len(polylines), guide_colors(groom, labels, len(polylines)),
+                      source=source, params=p)
 
 
 def scene_from_groom(p: Params) -> "GroomScene":

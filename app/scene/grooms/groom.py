@@ -52,6 +52,18 @@ class Groom:
         points = np.concatenate(self.strands) if self.strands else np.zeros((0, 3))
         return points, offsets
 
+    def strand_end_colors(self) -> np.ndarray | None:
+        """Linear RGB at every strand's root and tip, (n_strands, 2, 3) float64, or None when the file stores
+        no colour array (a .hair header's default colour is not used: cyHair writes white there).
+
+        The file's values are taken as display colours (sRGB-encoded in [0, 1], as a painter picks them and
+        as 8-bit PLY colours are) and decoded to the linear values the shader mixes. Only the root and tip are
+        kept, per strand; the scene holds them per guide (:func:`guide_colors`), never per fiber."""
+        if self.colors is None:
+            return None
+        ends = np.stack([np.stack([c[0], c[-1]]) for c in self.colors]) if self.colors else np.zeros((0, 2, 3))
+        return srgb_to_linear(np.clip(np.nan_to_num(ends, nan=0.0), 0.0, 1.0))
+
     def bbox(self) -> tuple[np.ndarray, np.ndarray]:
         """(min corner, max corner) of all vertices."""
         points, _ = self.packed()
@@ -67,3 +79,26 @@ class Groom:
         inner = sid[1:] == sid[:-1]
         return np.bincount(sid[1:][inner], weights=seg[inner], minlength=self.n_strands)
 
+
+
+def srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    """The sRGB transfer function inverted (IEC 61966-2-1), for colours in [0, 1]."""
+    c = np.asarray(c, np.float64)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def guide_colors(groom: Groom, labels: np.ndarray, n_guides: int) -> np.ndarray | None:
+    """Root and tip colour of each guide, (n_guides, 2, 3) float32: the mean over the strands it stands for
+    (``labels``: guide index of every groom strand, -1 where dropped). None without file colours."""
+    ends = groom.strand_end_colors()
+    if ends is None:
+        return None
+    labels = np.asarray(labels, np.int64)
+    use = labels >= 0
+    count = np.bincount(labels[use], minlength=n_guides)[:n_guides].astype(np.float64)
+    out = np.zeros((n_guides, 2, 3))
+    for e in range(2):
+        for ch in range(3):
+            out[:, e, ch] = np.bincount(labels[use], weights=ends[use, e, ch], minlength=n_guides)[:n_guides]
+    out /= np.maximum(count, 1.0)[:, None, None]
+    return out.astype(np.float32)
