@@ -8,6 +8,8 @@ What the file holds (docs/osl.md, "A Blender scene"):
   attributes**: ``vf_p0``, ``vf_p1`` (end points, object space), ``vf_n0``, ``vf_n1`` (joint planes),
   ``vf_fx`` (frame x), ``vf_rrg`` (r0, r1, guide), ``vf_v`` (v0, v1, 0): the GL's per-instance rows
   (app/scene/containers.py), so bent multi-segment guides, taper and joint planes come through unchanged.
+  A groom file with colours adds ``vf_root_color`` and ``vf_tip_color``: the linear colour of the face's
+  guide at its root and tip (``Scene.guide_colors``), which the shader uses when look.color_source = file.
 * **The look's material**: a Script node in *Internal* mode whose text (``vfiber.osl``) is the shader of
   :mod:`app.export.osl`, embedded in the file, compiled by this exporter (the bytecode is saved with the
   node). Cycles exports a mesh attribute only when a non-script node asks for it, so one Attribute node
@@ -59,6 +61,9 @@ ATTRIBUTES: dict[str, tuple[int, int, int] | tuple[int, int, None]] = {
     "vf_p0": (0, 1, 2), "vf_p1": (4, 5, 6), "vf_n0": (8, 9, 10), "vf_n1": (12, 13, 14),
     "vf_fx": (16, 17, 18), "vf_rrg": (3, 7, 19), "vf_v": (11, 15, None),
 }
+#: face attributes of the proxy mesh when the groom file has colours: the linear colour of the face's guide at
+#: its root and tip (Scene.guide_colors), read by the shader when look.color_source = "file"
+COLOR_ATTRIBUTES = ("vf_root_color", "vf_tip_color")
 OBJECT_NAME = "vfiber_containers"
 TEXT_NAME = "vfiber.osl"
 #: Blender's largest transparent bounce count; each box a ray passes costs two (in and out)
@@ -143,10 +148,17 @@ def _face_attribute(segments: np.ndarray, rows: np.ndarray, cols) -> np.ndarray:
     return out
 
 
+def color_face_attributes(segments: np.ndarray, rows: np.ndarray, guide_colors: np.ndarray) -> dict[str, np.ndarray]:
+    """{COLOR_ATTRIBUTES name: (faces, 3) float32}: each face's guide's root and tip colour."""
+    guide = segments[rows, 19].astype(np.int64)
+    return {name: np.ascontiguousarray(guide_colors[guide, end], np.float32)
+            for end, name in enumerate(COLOR_ATTRIBUTES)}
+
+
 # ------------------------------------------------------------------------------------------------------ bpy
 
 
-def _build_mesh(bpy, segments: np.ndarray):
+def _build_mesh(bpy, segments: np.ndarray, guide_colors: np.ndarray | None = None):
     verts, faces, sizes, rows = container_boxes(segments)
     mesh = bpy.data.meshes.new(OBJECT_NAME)
     mesh.vertices.add(len(verts))
@@ -160,11 +172,15 @@ def _build_mesh(bpy, segments: np.ndarray):
     for name, cols in ATTRIBUTES.items():
         a = mesh.attributes.new(name, "FLOAT_VECTOR", "FACE")
         a.data.foreach_set("vector", _face_attribute(segments, rows, cols).ravel())
+    if guide_colors is not None:
+        for name, values in color_face_attributes(segments, rows, guide_colors).items():
+            a = mesh.attributes.new(name, "FLOAT_VECTOR", "FACE")
+            a.data.foreach_set("vector", values.ravel())
     mesh.update()
     return mesh, len(verts), len(sizes)
 
 
-def _material(bpy, scene, source: str, name: str):
+def _material(bpy, scene, source: str, name: str, attributes=tuple(ATTRIBUTES)):
     from . import blender as B
 
     text = bpy.data.texts.new(TEXT_NAME)
@@ -191,7 +207,7 @@ def _material(bpy, scene, source: str, name: str):
     # Cycles exports a mesh attribute only when a non-script node asks for it: one Attribute node per name,
     # summed into one AOV value (a sink that keeps them alive without touching the image)
     total = None
-    for i, attr_name in enumerate(ATTRIBUTES):
+    for i, attr_name in enumerate(attributes):
         at = nt.nodes.new("ShaderNodeAttribute")
         at.attribute_type, at.attribute_name = "GEOMETRY", attr_name
         at.location = (-400, -200 - 120 * i)
@@ -356,9 +372,11 @@ def export_blend(params: Params, path: str | Path, size: tuple[int, int] = (640,
     scene.name = "vfiber"
     _render_settings(scene, params, size)   # the engine first: the script node asks it for its sockets
     say(f"{scene_data.n_segments} container segments of {scene_data.n_guides} guides -> one mesh ...")
-    mesh, n_verts, n_faces = _build_mesh(bpy, scene_data.segments)
+    colors = scene_data.guide_colors
+    mesh, n_verts, n_faces = _build_mesh(bpy, scene_data.segments, colors)
     say("compiling the shader ...")
-    mat, _script = _material(bpy, scene, osl_source(params, name), name)
+    mat, _script = _material(bpy, scene, osl_source(params, name), name,
+                             tuple(ATTRIBUTES) + (COLOR_ATTRIBUTES if colors is not None else ()))
     mesh.materials.append(mat)
     ob = bpy.data.objects.new(OBJECT_NAME, mesh)
     ob.location = tuple(float(v) for v in scene_data.origin)

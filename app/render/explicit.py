@@ -260,6 +260,7 @@ class ExplicitRenderer:
         self._warned: tuple[str, ...] = ()
         self._rows: moderngl.Buffer | None = None
         self._fibers: moderngl.Buffer | None = None
+        self._colors: moderngl.Buffer | None = None     # the scene's per-guide colours (a groom file's)
         self._vaos: dict[int, moderngl.VertexArray] = {}
         self._targets: dict[tuple, moderngl.Framebuffer] = {}
         # bound while targets are released: moderngl restores the previous binding after creating a
@@ -317,15 +318,24 @@ class ExplicitRenderer:
         """Bytes of GPU buffers holding the fibers and their segments (render targets not included)."""
         return sum(b.size for b in (self._rows, self._fibers) if b is not None)
 
+    def _bind_guide_colors(self, prog: moderngl.Program, p: Params) -> None:
+        """The same per-guide colours as Renderer (glsl/shading/fiber_color.glsl, binding 4)."""
+        colors = self.scene.guide_colors
+        if colors is not None and self._colors is None:
+            self._colors = self.ctx.buffer(self.scene.guide_color_rows().tobytes())
+        (self._colors or self._rows).bind_to_storage_buffer(4)   # never read without file colours
+        if "uGuideColors" in prog:
+            prog["uGuideColors"].value = int(p["look.color_source"] == "file" and colors is not None)
+
     def release(self) -> None:
         """Free the fiber buffers (the renderer can take a new scene afterwards)."""
         for vao in self._vaos.values():
             vao.release()
         self._vaos.clear()
-        for b in (self._rows, self._fibers):
+        for b in (self._rows, self._fibers, self._colors):
             if b is not None:
                 b.release()
-        self._rows = self._fibers = None
+        self._rows = self._fibers = self._colors = None
 
     def release_targets(self) -> None:
         if not self._targets:
@@ -424,6 +434,7 @@ class ExplicitRenderer:
         ctx.depth_func = "<"
         prog = self.program(p)
         self._set_uniforms(prog, p, cam, size, offset)
+        self._bind_guide_colors(prog, p)
         if self.plan.instances:
             self._vao(prog).render(moderngl.TRIANGLE_STRIP, vertices=4, instances=self.plan.instances)
             frame.draws = 1
@@ -451,7 +462,8 @@ def _look_uniforms(p: Params, fibers_per_container: int) -> dict:
         return {"uBaseColor": tuple(p["look.color"]), "uExposureScale": 2.0 ** p["look.exposure"],
                 "uShadowDensity": p["look.shadow_density"],
                 "uFiberDensity": fibers_per_container / np.pi * 2.0 * p["fibers.fiber_radius"]}
-    return {"uBaseColor": look.base_color(p), "uExposureScale": 2.0 ** p["look.exposure"],
+    return {"uBaseColor": look.base_color(p), "uTipColor": look.tip_color(p), "uTipBlend": p["look.tip_blend"],
+            "uTipStart": p["look.tip_start"], "uExposureScale": 2.0 ** p["look.exposure"],
             "uShadowDensity": p["look.shadow_density"],
             "uFiberDensity": look.fiber_density(p, fibers_per_container)}
 

@@ -418,7 +418,10 @@ def param_widget(state: AppState, scratch: dict[str, Any], p: Param) -> None:
     elif kind in ("color", "drag3"):
         values = [float(x) for x in shown]
         if kind == "color":
-            changed, values = imgui.color_edit3(label, values, imgui.ColorEditFlags_.float)
+            # the numbers stay linear (what presets and --set hold); imgui's own swatch would show them as
+            # display values, so it is replaced by color_swatches below
+            changed, values = imgui.color_edit3(label, values, imgui.ColorEditFlags_.float
+                                                | imgui.ColorEditFlags_.no_small_preview)
         else:
             speed = max(0.001, 0.005 * max(abs(x) for x in values)) if any(values) else 0.01
             changed, values = imgui.drag_float3(label, values, speed, p.lo or 0.0, p.hi or 0.0, "%.4g", clamp)
@@ -474,9 +477,92 @@ def param_widget(state: AppState, scratch: dict[str, Any], p: Param) -> None:
         imgui.push_text_wrap_pos(0.0)
         imgui.text_colored(AMBER, state.notes[key])
         imgui.pop_text_wrap_pos()
+    if kind == "color" or key in LIT_SWATCH_KEYS:
+        picked = color_swatches(state, scratch, p)
+        if picked is not None:
+            state.edit(key, _tidy(picked))
     if key == "scene.segments" and state.params["scene.generator"] == "groom" and state.stats.guides:
         chosen = state.stats.segments // max(state.stats.guides, 1)
         imgui.text_disabled(f"  {'auto: ' if shown == 1 else ''}{chosen} per guide for this groom")
+
+
+# Controls whose colour ends up on the fibers: they get an "as lit" swatch besides the colour's own.
+LIT_SWATCH_KEYS = ("look.color", "look.tip_color", "look.melanin", "look.tip_melanin")
+SWATCH_SIZE = 22.0
+
+
+def swatch_colors(params, key: str) -> tuple[tuple[int, int, int] | None, tuple[int, int, int] | None]:
+    """(colour, as lit) in 8-bit display levels for a control; either may be None.
+
+    colour: the linear value through the renderer's display power (look.display_color): the colour itself,
+    as Blender's picker shows a scene-linear colour. as lit: the median colour a lit clump of it shows in
+    the picture (look.lit_swatch: tone map, sky fill, white highlight, self-shadow and occlusion of the
+    current look and lights, seen from the camera's direction). Melanin controls show their colour."""
+    from ..render import look
+
+    p = BY_KEY[key]
+    if key in ("look.melanin", "look.tip_melanin"):
+        linear = look.base_color(params) if key == "look.melanin" else look.tip_color(params)
+    elif p.kind is tuple:
+        linear = params[key]
+    else:
+        return None, None
+    lit = look.lit_swatch(params, linear) if key in LIT_SWATCH_KEYS else None
+    return look.display_color(linear), lit
+
+
+def _lit_cache(scratch: dict[str, Any], params, key: str):
+    # lit_swatch takes ~10 ms of numpy: once per distinct look, not per UI frame
+    stamp = (key, tuple(sorted((k, v) for k, v in params.values.items() if not k.startswith("quality."))))
+    cache = scratch.setdefault("swatch_cache", {})
+    if stamp not in cache:
+        if len(cache) > 64:
+            cache.clear()
+        cache[stamp] = swatch_colors(params, key)
+    return cache[stamp]
+
+
+def color_swatches(state: AppState, scratch: dict[str, Any], p: Param):
+    """The colour's swatch (click: a picker in display space, what you see is what you pick) and, for the
+    fibers' colours, the 'as lit' one. Returns a new linear value when the picker changed it, else None."""
+    from ..render import look
+
+    try:
+        shown, lit = _lit_cache(scratch, state.params, p.key)
+    except Exception as exc:  # a swatch must never take the panel down; say why instead
+        imgui.text_disabled(f"  (no swatch: {exc})")
+        return None
+    size = imgui.ImVec2(SWATCH_SIZE, SWATCH_SIZE)
+    picked = None
+    imgui.indent(8.0)
+    if shown is not None:
+        col = imgui.ImVec4(*(c / 255.0 for c in shown), 1.0)
+        if imgui.color_button(f"colour##sw-{p.key}", col, imgui.ColorEditFlags_.no_tooltip, size) \
+                and p.kind is tuple:
+            state.begin_gesture()       # one undo step for the whole pick
+            imgui.open_popup(f"picker##{p.key}")
+        imgui.set_item_tooltip(f"the colour itself, sRGB {shown} (the linear value through the display's "
+                               f"power 1/{look.DISPLAY_GAMMA:g}, as the picture is encoded)"
+                               + ("; click to pick it on screen" if p.kind is tuple else ""))
+        imgui.same_line()
+        imgui.text_disabled("colour")
+    if lit is not None:
+        imgui.same_line()
+        imgui.color_button(f"lit##sw-{p.key}", imgui.ImVec4(*(c / 255.0 for c in lit), 1.0),
+                           imgui.ColorEditFlags_.no_tooltip, size)
+        imgui.set_item_tooltip(f"as lit: sRGB {lit}, the median colour a clump of it shows under the "
+                               "current lights, tone map and self-shadow, seen from the camera")
+        imgui.same_line()
+        imgui.text_disabled("as lit")
+    if imgui.begin_popup(f"picker##{p.key}"):
+        disp = [(c / 255.0) for c in shown]
+        changed, disp = imgui.color_picker3(f"##pick-{p.key}", disp, imgui.ColorEditFlags_.no_side_preview)
+        if changed:
+            linear = tuple(min(max(float(c), 0.0), 1.0) ** look.DISPLAY_GAMMA for c in disp)
+            picked = linear if linear != tuple(state.params[p.key]) else None
+        imgui.end_popup()
+    imgui.unindent(8.0)
+    return picked
 
 
 def _tidy(v: Any) -> Any:

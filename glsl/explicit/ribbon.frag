@@ -8,6 +8,7 @@
 #include "shading/light.glsl"
 #include "shading/kajiya_kay.glsl"
 #include "shading/marschner.glsl"
+#include "shading/fiber_color.glsl"
 
 #ifndef SHADING_MODEL
 #define SHADING_MODEL 0
@@ -23,10 +24,9 @@ flat in vec4 vAxis;             // container segment axis (unit), length h
 flat in vec2 vEnds;             // 1: the segment is the guide's root / tip
 flat in uvec4 vId;
 flat in vec3 vLook;
+in float vV;                    // guide parameter at this point of the ribbon
 
-uniform vec3 uBaseColor;        // linear; from RGB or from melanin
 uniform float uRoughness;
-uniform float uTintVariation;
 uniform float uRoughnessVariation;
 uniform float uShadowDensity;
 uniform float uFiberDensity;    // fiber cross-section per unit length of a light path, unit space
@@ -75,7 +75,7 @@ void main() {
     vec3 N = normalize(S * u + F * sqrt(max(0.0, 1.0 - u * u)));
     vec3 T = normalize(vShadeTangent);
 
-    vec3 color = clamp(uBaseColor * (1.0 + uTintVariation * 2.0 * (vLook.x - 0.5)), 0.0, 1.0);
+    vec3 color = fiber_color(vId.x - 1u, vV, vLook.x - 0.5);
     float roughness = clamp(uRoughness * (1.0 + uRoughnessVariation * 2.0 * (vLook.y - 0.5)), 0.02, 1.0);
     float occlusion = mix(1.0, exp(-3.0 * (1.0 - vLook.z)), uShadowDensity);
     vec3 L = uLightDir;

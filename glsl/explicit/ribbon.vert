@@ -30,6 +30,7 @@ flat out vec4 vAxis;            // segment axis (unit) and length h: for the sel
 flat out vec2 vEnds;            // 1 where the segment is the guide's root / tip: light leaves there
 flat out uvec4 vId;             // guide + 1, ring, fiber, segment row
 flat out vec3 vLook;            // tint, roughness (0 .. 1), |c|
+out float vV;                   // guide parameter (0 root .. 1 tip): the colour along the strand
 
 void main() {
     float t = (gl_VertexID >> 1) == 0 ? aFiber.w : aEnd;
@@ -51,6 +52,7 @@ void main() {
     vShadeTangent = normalize(normalize(mix(aRowC.xyz, aRowD.xyz, t)) + (aRowB.w - aRowA.w) / h * d);
     vInside = vec4(w * d, t * h);
     vRadius = w;
+    vV = mix(aRowC.w, aRowD.w, t);
     vPos = pCam + side * halfWidth * across;
     vTangent = T;
     vAcross = side;
