@@ -50,7 +50,8 @@ def gpu_bytes(scene: Scene, p: Params) -> dict[str, tuple[int, str]]:
     pl = explicit.plan(scene, p)
     return {
         "virtual": (scene_gpu_bytes(scene),
-                    "container segments + their hierarchy + proxy rectangle (Renderer.set_scene)"),
+                    "container segments" + (" + per-guide colours" if scene.guide_colors is not None else "")
+                    + " + their hierarchy + proxy rectangle (Renderer.set_scene)"),
         "explicit": (pl.gpu_bytes, f"ExplicitRenderer: {explicit.INSTANCE_BYTES} B per fiber per segment "
                                    f"({pl.instances:,}) + {explicit.ROW_BYTES} B per segment"),
     }

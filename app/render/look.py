@@ -73,7 +73,7 @@ def fiber_color(v, tint, p: Params, root=None, tip_file=None) -> np.ndarray:
     if root is not None:
         root = np.asarray(root, np.float64)
         tip_file = root if tip_file is None else np.asarray(tip_file, np.float64)
-        base = root + (tip_file - root) * v[..., None]
+        base = root + (tip_file - root) * np.clip(v, 0.0, 1.0)[..., None]
     w = tip_weight(v, p["look.tip_blend"], p["look.tip_start"])[..., None]
     c = base + (np.asarray(tip_color(p), np.float64) - base) * w
     return np.clip(c * (1.0 + p["look.tint_variation"] * 2.0 * tint[..., None]), 0.0, 1.0)

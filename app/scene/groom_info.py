@@ -107,6 +107,8 @@ def source_info(scene: Scene, p: Params, gpu_lines: Sequence[str] = ()) -> list[
     per_container = ring_layout(p).fibers_per_container
     lines.append(f"{'fibers rendered':<{_W}}{fibers:,} = {scene.n_guides:,} guides x {per_container:,} per "
                  f"container: {fibers / max(s.strands, 1):,.1f} fibers per file strand")
+    from .grooms.groom import colour_summary
+    lines.append(f"{'colours':<{_W}}{colour_summary(scene.guide_colors, p['look.color_source'])}")
     lines += gpu_lines
     if s.seconds:
         lines.append(f"{'build time':<{_W}}" + ", ".join(f"{k} {t:.3f} s" for k, t in s.seconds.items()))

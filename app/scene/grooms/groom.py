@@ -102,3 +102,19 @@ def guide_colors(groom: Groom, labels: np.ndarray, n_guides: int) -> np.ndarray 
             out[:, e, ch] = np.bincount(labels[use], weights=ends[use, e, ch], minlength=n_guides)[:n_guides]
     out /= np.maximum(count, 1.0)[:, None, None]
     return out.astype(np.float32)
+
+
+def colour_summary(guide_colors: np.ndarray | None, source: str) -> str:
+    """One line for ``vfiber info``: whether the file's colours reach the scene, what they are like and what
+    they cost (``source``: the look.color_source in effect)."""
+    if guide_colors is None:
+        return "none in the file: every strand takes the look's colour"
+    n = len(guide_colors)
+    along = float(np.abs(guide_colors[:, 1] - guide_colors[:, 0]).max()) if n else 0.0
+    mean = guide_colors.reshape(-1, 3).mean(axis=0) if n else np.zeros(3)
+    spread = guide_colors.reshape(-1, 3).std(axis=0).mean() if n else 0.0
+    kind = "the same at root and tip" if along < 1e-3 else f"changing root to tip (by up to {along:.2f})"
+    use = ("in use (look.color_source = file)" if source == "file"
+           else "not used: look.color_source = look (set it to file to see them)")
+    return (f"root and tip per guide, {kind}; mean linear ({', '.join(f'{c:.3f}' for c in mean)}), spread {spread:.2f}; "
+            f"{n * 32:,} B on the GPU; {use}")
