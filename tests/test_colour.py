@@ -464,3 +464,42 @@ def test_exported_blend_shows_the_files_colours(tmp_path):
         hue[name] = float(px[:, 0].mean() / max(px[:, 1].mean(), 1e-6))
     # which strand is on which side depends on the camera; one is red, the other green
     assert max(hue.values()) > 2.0 and min(hue.values()) < 0.5, json.dumps(hue)
+
+
+# ------------------------------------------------------------------------------- presets, --set, modes
+
+def test_colour_controls_come_from_presets_and_set():
+    from app.params import parse_assignment
+    from app.presets import loads_preset
+
+    text = ('version = 2\nname = "sunlit"\n[look]\ntip_blend = 0.6\ntip_start = 0.25\n'
+            'tip_color = [0.9, 0.8, 0.6]\ncolor_source = "file"\n')
+    pre = loads_preset(text, "sunlit.toml")
+    p = getattr(pre, "params", pre)
+    assert (p["look.tip_blend"], p["look.tip_start"], p["look.color_source"]) == (0.6, 0.25, "file")
+    assert p["look.tip_color"] == (0.9, 0.8, 0.6)
+    from app.cli import resolve_params
+
+    root = Path(__file__).resolve().parents[1]
+    q, _ = resolve_params(str(root / "presets" / "default.toml"), ["look.tip_color=0.9,0.8,0.6",
+                                                                   "look.tip_melanin=0.1"])
+    assert q["look.tip_color"] == (0.9, 0.8, 0.6) and q["look.tip_melanin"] == 0.1
+    assert Params(dict([parse_assignment("look.tip_color=[0.9, 0.8, 0.6]")]))["look.tip_color"] == (0.9, 0.8, 0.6)
+    with pytest.raises(Exception, match="look.tip_blend"):
+        Params({"look.tip_blend": 1.5})
+    with pytest.raises(Exception, match="look.color_source"):
+        Params({"look.color_source": "files"})
+
+
+def test_exact_equals_brute_with_colours_on(renderer, tmp_path):
+    """Colour is applied after the traversal: exact and brute find the same fibers and so the same
+    colours, gradient and the file's colours included."""
+    path, _ = _groom_file(tmp_path, "ply", _strands(), RED_GREEN)
+    values = {"scene.generator": "groom", "scene.groom_file": str(path), "scene.groom_up": "z",
+              "camera.elevation": 0.0, "camera.azimuth": 90.0, "fibers.phi_step": 6.0, "look.color_source": "file",
+              **GRADIENT, "look.tip_start": 0.3}
+    scene = scene_from_groom(Params(values))
+    exact = _render(renderer, values, scene, size=(96, 72), mode="exact")
+    brute = _render(renderer, values, scene, size=(96, 72), mode="brute")
+    assert np.array_equal(exact.ids[..., :3], brute.ids[..., :3])
+    assert np.array_equal(exact.color, brute.color)
