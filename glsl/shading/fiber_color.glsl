@@ -18,6 +18,7 @@ uniform int uGuideColors;       // 1: GuideColors holds the file's colours, 0: t
 
 layout(std430, binding = 4) readonly buffer GuideColors { vec4 guideColors[]; };   // two per guide
 
+// The floor 1e-4 is part of the formula, not a tolerance: a blend that starts at the tip has no span.
 float tip_weight(float v, float blend, float start) {
     float t = clamp((v - start) / max(1.0 - start, 1e-4), 0.0, 1.0);
     return blend * t * t * (3.0 - 2.0 * t);

@@ -27,7 +27,8 @@ from app.scene.generators import build_scene
 from app.scene.grooms import load_groom, scene_from_groom
 from app.scene.grooms.groom import srgb_to_linear
 
-from .test_grooms import hair_bytes, ply_bytes
+from tests.scene.test_grooms import hair_bytes, ply_bytes
+from tests.support.paths import HAIR_DATA, ROOT
 
 SIZE = (160, 120)
 # a side view of one straight vertical clump: image rows run root (bottom) to tip (top)
@@ -327,11 +328,8 @@ def test_explicit_baseline_draws_the_same_colours(ctx, tmp_path):
 def test_the_five_shared_grooms_colours():
     """Which shared grooms carry colours (docs/grooms.md): only Curly_100.ply, one colour per strand,
     spread over the whole range (a per-strand id palette rather than hair colour)."""
-    root = Path(__file__).resolve().parents[1] / ".." / "shared" / "hair-data"
-    if not root.is_dir():
-        root = Path("/work/shared/hair-data")
     found = {}
-    for f in sorted(root.glob("*.*")):
+    for f in sorted(HAIR_DATA.glob("*.*")):
         if f.suffix == ".md":
             continue
         g = load_groom(f)
@@ -361,7 +359,7 @@ def test_lit_swatch_predicts_the_rendered_fibers(renderer, values):
     was 48 levels off in blue for the default brown.)"""
     from app.presets import load_preset
 
-    pre = load_preset(Path(__file__).resolve().parents[1] / "presets" / "default.toml")
+    pre = load_preset(ROOT / "presets" / "default.toml")
     pre = getattr(pre, "params", pre)
     p = pre.replace(**values)
     scene = build_scene(p)
@@ -391,7 +389,7 @@ def test_blend_face_attributes_carry_each_faces_guide_colours(tmp_path):
 
 
 def _blender():
-    from .test_osl_export import HAVE_BPY
+    from tests.export.test_osl_export import HAVE_BPY
     if not HAVE_BPY:
         pytest.skip("bpy is not installed: pip install 'vfiber[blender]'")
     from app.export import blender as B
@@ -404,7 +402,7 @@ def _blender():
 
 def test_osl_fiber_color_matches_numpy_in_cycles(tmp_path):
     """vf_fiber_color / vf_tip_weight in Cycles against look.fiber_color, value by value (float32)."""
-    from .test_osl_export import _probe
+    from tests.export.test_osl_export import _probe
 
     B = _blender()
     rng = np.random.default_rng(3)
@@ -442,7 +440,7 @@ def test_exported_blend_shows_the_files_colours(tmp_path):
     import sys
 
     _blender()
-    from .test_blender_export import ROOT, _render_like_a_farm
+    from tests.export.test_blender_export import _render_like_a_farm
 
     path, _ = _groom_file(tmp_path, "hair", _strands(), RED_GREEN)
     blend = tmp_path / "c.blend"
@@ -480,8 +478,7 @@ def test_colour_controls_come_from_presets_and_set():
     assert p["look.tip_color"] == (0.9, 0.8, 0.6)
     from app.cli import resolve_params
 
-    root = Path(__file__).resolve().parents[1]
-    q, _ = resolve_params(str(root / "presets" / "default.toml"), ["look.tip_color=0.9,0.8,0.6",
+    q, _ = resolve_params(str(ROOT / "presets" / "default.toml"), ["look.tip_color=0.9,0.8,0.6",
                                                                    "look.tip_melanin=0.1"])
     assert q["look.tip_color"] == (0.9, 0.8, 0.6) and q["look.tip_melanin"] == 0.1
     assert Params(dict([parse_assignment("look.tip_color=[0.9, 0.8, 0.6]")]))["look.tip_color"] == (0.9, 0.8, 0.6)
