@@ -26,7 +26,6 @@ from app.scene.containers import Scene
 from app.scene.generators import build_scene
 from app.scene.grooms import load_groom, scene_from_groom
 from app.scene.grooms.groom import srgb_to_linear
-
 from tests.scene.test_grooms import hair_bytes, ply_bytes
 from tests.support.paths import HAIR_DATA, ROOT
 

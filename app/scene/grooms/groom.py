@@ -116,5 +116,6 @@ def colour_summary(guide_colors: np.ndarray | None, source: str) -> str:
     kind = "the same at root and tip" if along < 1e-3 else f"changing root to tip (by up to {along:.2f})"
     use = ("in use (look.color_source = file)" if source == "file"
            else "not used: look.color_source = look (set it to file to see them)")
-    return (f"root and tip per guide, {kind}; mean linear ({', '.join(f'{c:.3f}' for c in mean)}), spread {spread:.2f}; "
-            f"{n * 32:,} B on the GPU; {use}")
+    shown = ", ".join(f"{c:.3f}" for c in mean)
+    return (f"root and tip per guide, {kind}; mean linear ({shown}), spread {spread:.2f}; {n * 32:,} B on the GPU; "
+            f"{use}")
