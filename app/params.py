@@ -155,6 +155,12 @@ SPEC: tuple[Param, ...] = (
       "thesis's fract(1207.523 * phi)", choices=("integer", "thesis")),
     P("fibers.seed", int, 0, "seed of the per-fiber random numbers", 0, 2**31 - 1),
 
+    # --- strand: how each virtual fiber is drawn along its own length (issue 15) ---
+    P("strand.tip_width", float, 1.0, "width of a fiber at its own tip, as a fraction of its root width "
+      "(fibers.fiber_radius): 1 keeps blunt cylinders, 0 ends each fiber in a point", 0.0, 1.0),
+    P("strand.taper_start", float, 0.5, "where along each fiber's own length the thinning toward the tip "
+      "begins: 0 at the root, 0.9 only the last tenth", 0.0, 0.95),
+
     # --- shape: fibers that are not straight pins (thesis 3.10) ---
     P("shape.ellipsoid", float, 0.0, "0: rings follow the cylinder; 1: rings follow the inscribed "
       "ellipsoid (thesis Figure 27)", 0.0, 1.0),

@@ -28,10 +28,10 @@ from . import fibers
 # The model itself (placement, hash, shape) is app.fibers'; it is named here too so that a test holds a
 # GLSL function against ``reference.NAME`` whichever side of the line between model and judge it sits on.
 from .fibers import (CH_ANGULAR, CH_CURL, CH_LENGTH, CH_RADIAL, CH_RING, CH_ROUGH, CH_TINT,  # noqa: F401
-                     CURL_PATTERNS, LAYOUT_KEYS, THESIS_LCG, TWIST_PATTERNS, RingLayout, Shape, all_fibers,
+                     CURL_PATTERNS, LAYOUT_KEYS, THESIS_LCG, TWIST_PATTERNS, RingLayout, Shape, Taper, all_fibers,
                      fiber_center, fiber_center_at, fiber_count, fiber_hash, fiber_key, fiber_random,
                      fiber_randoms, key_random, lowbias32, ring_key, ring_layout, shape_scale, shape_twist,
-                     thesis_random)
+                     taper_apex, taper_line, thesis_random)
 from .params import Params
 from .scene.containers import Scene
 
@@ -114,6 +114,37 @@ def circle_interval(ox, oy, dx, dy, cx, cy, r):
     t0 = np.where(par, -np.inf, np.minimum(t_a, t_b))
     t1 = np.where(par, np.inf, np.maximum(t_a, t_b))
     return np.where(hit, t0, np.inf), np.where(hit, t1, -np.inf)
+
+
+def cone_interval(ox, oy, dx, dy, cx, cy, rho0, rho1):
+    """Ray interval inside the cone |p(t) - c| <= rho0 + rho1 t about the vertical axis through (cx, cy)
+    (p the ray's xy; the radius is linear in t because it is linear in the unit-space height), on the
+    side of the apex where the radius is positive; the caller cuts at the apex (glsl/fibers/taper.glsl:
+    cone_interval). f(t) = |p - c|^2 - rho^2 = a t^2 + 2 b t + c with a = |d|^2 - rho1^2: a > 0 (the ray
+    shallower than the cone's side) meets it between the roots; a < 0 (steeper) outside them, and only
+    the half toward the widening side is this nappe. Roots and discriminant as circle_interval's: disc =
+    |rho0 d - rho1 (o - c)|^2 - cross^2, factored, which for rho1 = 0 is the cylinder's."""
+    ocx, ocy = ox - cx, oy - cy
+    dlen = np.hypot(dx, dy)
+    a = (dlen - np.abs(rho1)) * (dlen + np.abs(rho1))
+    b = ocx * dx + ocy * dy - rho0 * rho1
+    oc = np.hypot(ocx, ocy)
+    c = (oc - rho0) * (oc + rho0)
+    cross = np.abs(ocx * dy - ocy * dx)
+    m = np.hypot(rho0 * dx - rho1 * ocx, rho0 * dy - rho1 * ocy)
+    disc = (m - cross) * (m + cross)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        q = -(b + np.where(b >= 0, 1.0, -1.0) * np.sqrt(np.maximum(disc, 0.0)))
+        t_a = q / np.where(a != 0, a, 1.0)
+        t_b = np.where(q != 0, c / q, t_a)
+    lo, hi = np.minimum(t_a, t_b), np.maximum(t_a, t_b)
+    inside = disc >= 0
+    t0 = np.where(a > 0, np.where(inside, lo, np.inf), np.where(rho1 > 0, hi, -np.inf))
+    t1 = np.where(a > 0, np.where(inside, hi, -np.inf), np.where(rho1 > 0, np.inf, lo))
+    # a = 0: the ray parallel to a side line; f is linear, 2 b t + c, and t_b its root
+    t0 = np.where(a == 0, np.where(b < 0, t_b, np.where(b > 0, -np.inf, np.where(c <= 0, -np.inf, np.inf))), t0)
+    t1 = np.where(a == 0, np.where(b > 0, t_b, np.where(b < 0, np.inf, np.where(c <= 0, np.inf, -np.inf))), t1)
+    return t0, t1
 
 
 @dataclass
@@ -206,6 +237,7 @@ def brute_nearest(scene: Scene, p: Params, ro: np.ndarray, rd: np.ndarray, t_nea
     lay = ring_layout(p)
     rf = lay.fiber_radius
     sh = Shape.from_params(p)
+    taper = Taper.from_params(p)
     fibers_cache: dict[int, tuple] = {}
     for si, row in enumerate(scene.segments):
         seg = segment(row)
@@ -214,7 +246,7 @@ def brute_nearest(scene: Scene, p: Params, ro: np.ndarray, rd: np.ndarray, t_nea
         if not len(live) or rf <= 0:
             continue
         if sh.curved:
-            s_best, ring_b, j_b = shaped_nearest_segment(sh, lay, seg, ur, live)
+            s_best, ring_b, j_b = shaped_nearest_segment(sh, lay, seg, ur, live, taper=taper)
             ok = np.isfinite(s_best)
             rows = live[ok]
             t = unit_to_world_t(seg, ur, s_best[ok], rows)
@@ -231,6 +263,10 @@ def brute_nearest(scene: Scene, p: Params, ro: np.ndarray, rd: np.ndarray, t_nea
             fibers_cache[seg.guide] = all_fibers(lay, seg.guide)
         ring, j, cx, cy, v_end = fibers_cache[seg.guide]
         zc = z_cut_unit(seg, v_end)
+        if taper.on:
+            # app/fibers/taper.py: the root-width cylinder cut by the cone, which ends at its apex
+            l0, l1 = taper_line(taper, seg.v0, seg.v1, seg.h / (seg.v1 - seg.v0), seg.r0, seg.kappa, v_end)
+            zc = np.minimum(zc, taper_apex(l0, l1))
         step = max(1, chunk // max(1, len(cx)))
         for a in range(0, len(live), step):
             sel = live[a:a + step]
@@ -239,6 +275,10 @@ def brute_nearest(scene: Scene, p: Params, ro: np.ndarray, rd: np.ndarray, t_nea
             z0, z1 = _slab(O[:, 2:3], D[:, 2:3], -np.inf, zc[None])
             s_in = np.maximum(np.maximum(c0, z0), ur.s0[sel, None])
             s_out = np.minimum(np.minimum(c1, z1), ur.s1[sel, None])
+            if taper.on:
+                k0, k1 = cone_interval(O[:, :1], O[:, 1:2], D[:, :1], D[:, 1:2], cx[None], cy[None],
+                                       rf * (l0[None] + l1[None] * O[:, 2:3]), rf * l1[None] * D[:, 2:3])
+                s_in, s_out = np.maximum(s_in, k0), np.minimum(s_out, k1)
             s_in = np.where(s_in <= s_out, s_in, np.inf)
             best = np.argmin(s_in, axis=1)
             s_best = s_in[np.arange(len(sel)), best]
@@ -344,10 +384,16 @@ def segment_bands(sh: Shape, seg: Segment) -> tuple[float, float]:
     return min(ea, eb), e_hi
 
 
-def piece_entry(sh, lay, seg, O, D, P0, P1, s_a, s_b, rest_x, rest_y, phase, v_end):
+def piece_entry(sh, lay, seg, O, D, P0, P1, s_a, s_b, rest_x, rest_y, phase, v_end, taper: Taper | None = None):
     """Entry parameter of each (ray, fiber) pair over the chord piece [s_a, s_b] (curved.glsl: piece_entry):
-    the ray seen from the fiber runs from P0.xy - c'(P0) to P1.xy - c'(P1) on a line. inf on a miss."""
+    the ray seen from the fiber runs from P0.xy - c'(P0) to P1.xy - c'(P1) on a line. inf on a miss.
+    A tapered fiber's width is linear in the ray's unit-space height, so along the piece it is linear in s
+    too: the cone of ``cone_interval`` about the moving centre."""
     zc = z_cut_unit(seg, v_end)
+    tapering = taper is not None and taper.on
+    if tapering:
+        l0, l1 = taper_line(taper, seg.v0, seg.v1, seg.h / (seg.v1 - seg.v0), seg.r0, seg.kappa, v_end)
+        zc = np.minimum(zc, taper_apex(l0, l1))
     z0, z1 = _slab(O[..., 2], D[..., 2], -np.inf, zc)
     lo, hi = np.maximum(s_a, z0), np.minimum(s_b, z1)
     c0x, c0y = ring_frame_center(sh, rest_x, rest_y, phase, P0)
@@ -359,13 +405,18 @@ def piece_entry(sh, lay, seg, O, D, P0, P1, s_a, s_b, rest_x, rest_y, phase, v_e
     dqx = np.where(length > 0, (q1x - q0x) / safe, 0.0)
     dqy = np.where(length > 0, (q1y - q0y) / safe, 0.0)
     e0, e1 = circle_interval(q0x, q0y, dqx, dqy, 0.0, 0.0, lay.fiber_radius)
+    if tapering:
+        rf = lay.fiber_radius
+        k0, k1 = cone_interval(q0x, q0y, dqx, dqy, 0.0, 0.0, rf * (l0 + l1 * (O[..., 2] + s_a * D[..., 2])),
+                               rf * l1 * D[..., 2])
+        e0, e1 = np.maximum(e0, k0), np.minimum(e1, k1)
     s_in = np.maximum(s_a + e0, lo)
     s_out = np.minimum(s_a + e1, hi)
     return np.where((zc != -np.inf) & (s_in <= s_out), s_in, np.inf)
 
 
 def shaped_nearest_segment(sh: Shape, lay: RingLayout, seg: Segment, ur: UnitRays, live: np.ndarray,
-                           chunk: int = 2_000_000):
+                           chunk: int = 2_000_000, taper: Taper | None = None):
     """Nearest curved-fiber hit of the rays ``live`` in one segment: (s, ring, fiber) arrays, brute force
     over the same arcs and chord pieces the shader walks (glsl/fibers/shaped.glsl): every fiber of a ring
     on each piece of each arc of that ring."""
@@ -437,7 +488,7 @@ def shaped_nearest_segment(sh: Shape, lay: RingLayout, seg: Segment, ur: UnitRay
                     col = lambda x: x[:, None]  # noqa: E731
                     hit = piece_entry(sh, lay, seg, Or[:, None, :], Dr[:, None, :], tuple(map(col, P0)),
                                       tuple(map(col, P1)), col(s_k), col(s_k1), rest_x[None], rest_y[None],
-                                      phase[None], v_end[None])
+                                      phase[None], v_end[None], taper)
                     s = np.where(col(k < n), np.minimum(s, hit), s)
                     P0, s_k = P1, s_k1
                 k = np.argmin(s, axis=1)

@@ -8,8 +8,8 @@ judges the shader and imports the model from here. The renderer imports the mode
 docs/architecture.md lists every GLSL function of the model with its numpy and OSL twins.
 
 Modules: ``layout`` (rings, fiber counts, placement), ``hash`` (lowbias32, fiber keys and randoms,
-channels), ``shape`` (Shape, twist and curl codes), ``limits`` (MAX_RINGS, MAX_SUB), ``defines`` (all of
-these as GLSL/OSL defines).
+channels), ``shape`` (Shape, twist and curl codes), ``taper`` (each fiber's width toward its own tip),
+``limits`` (MAX_RINGS, MAX_SUB), ``defines`` (all of these as GLSL/OSL defines).
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ from .layout import (LAYOUT_KEYS, RingLayout, all_fibers, fiber_center, fiber_co
 from .limits import MAX_RINGS, MAX_SUB
 from .shape import (CURL_HELIX, CURL_PATTERNS, CURL_WAVE, TWIST_ALTERNATING, TWIST_PATTERNS, TWIST_RAMPED,
                     TWIST_UNIFORM, Shape, fiber_center_at, shape_scale, shape_twist)
+from .taper import TAPER_KEYS, Taper, taper_apex, taper_line, tapered
 
 __all__ = [
     "MAX_RINGS", "MAX_SUB",
@@ -33,5 +34,6 @@ __all__ = [
     "fiber_center", "all_fibers",
     "TWIST_PATTERNS", "CURL_PATTERNS", "TWIST_UNIFORM", "TWIST_RAMPED", "TWIST_ALTERNATING", "CURL_HELIX",
     "CURL_WAVE", "Shape", "shape_twist", "shape_scale", "fiber_center_at",
+    "TAPER_KEYS", "Taper", "taper_line", "taper_apex", "tapered",
     "glsl_defines", "osl_defines", "osl_header",
 ]
