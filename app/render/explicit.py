@@ -53,6 +53,7 @@ from .renderer import Frame, clear_targets, light_direction, release_framebuffer
 
 DEFAULT_BUDGET_BYTES = 1 << 30     # 1 GiB of fiber buffers; on llvmpipe "GPU" memory is system memory
 INSTANCE_BYTES = 12                # per (segment, fiber): half4(d.xyz, t0), half t1, uint16 tint | rough
+TAPER_BYTES = 2                    # per (segment, fiber) when fibers taper: half v_end (the fiber's own end)
 ROW_BYTES = SEGMENT_BYTES          # per segment row: the scene's own row (p0 r0, p1 r1, n0 v0, n1 v1, fx guide)
 GEN_INSTANCES = 1 << 18            # (segment, fiber) pairs generated per numpy batch: bounds temporaries
 MAX_INSTANCES = 2**31 - 1          # gl_InstanceID is a signed int
@@ -88,6 +89,7 @@ class Plan:
     rows: int                      # container segments
     guides: int                    # distinct guides (chains of segments)
     fibers_per_container: int
+    tapered: bool = False          # strand.tip_width < 1: each instance also stores its fiber's v_end
 
     @property
     def fibers(self) -> int:
@@ -100,18 +102,20 @@ class Plan:
 
     @property
     def gpu_bytes(self) -> int:
-        return explicit_bytes(self.fibers_per_container, self.rows)
+        return explicit_bytes(self.fibers_per_container, self.rows, self.tapered)
 
     @property
     def bytes_per_fiber(self) -> float:
         return self.gpu_bytes / max(1, self.fibers)
 
 
-def explicit_bytes(fibers_per_container: int, n_segments: int) -> int:
+def explicit_bytes(fibers_per_container: int, n_segments: int, tapered: bool = False) -> int:
     """GPU bytes ``ExplicitRenderer.set_scene`` allocates for these fibers: one instance per fiber per
-    container segment and each segment's row once (at least one of each: a GL buffer cannot be empty). The
-    one formula for "explicit bytes": ``vfiber info``, the viewer and the budget all use it."""
-    return (max(1, int(n_segments) * int(fibers_per_container)) * INSTANCE_BYTES
+    container segment and each segment's row once (at least one of each: a GL buffer cannot be empty), and
+    for tapered fibers (strand.tip_width < 1) each instance's v_end. The one formula for "explicit bytes":
+    ``vfiber info``, the viewer and the budget all use it."""
+    per_instance = INSTANCE_BYTES + (TAPER_BYTES if tapered else 0)
+    return (max(1, int(n_segments) * int(fibers_per_container)) * per_instance
             + max(1, int(n_segments)) * ROW_BYTES)
 
 
@@ -122,7 +126,7 @@ EXPLICIT_FORMULA = (f"explicit = fibers per container x container segments x {IN
 
 def plan(scene: Scene, p: Params) -> Plan:
     guides = len(np.unique(scene.segments[:, 19])) if scene.n_segments else 0
-    return Plan(scene.n_segments, guides, fibers.ring_layout(p).fibers_per_container)
+    return Plan(scene.n_segments, guides, fibers.ring_layout(p).fibers_per_container, fibers.tapered(p))
 
 
 def estimate_bytes(scene: Scene, p: Params) -> int:
@@ -230,6 +234,13 @@ def segment_fibers(scene: Scene, lay: fibers.RingLayout, rows: np.ndarray) -> tu
     return out.reshape(-1, 6), (z1 - z0) / h
 
 
+def fiber_ends(scene: Scene, lay: fibers.RingLayout, rows: np.ndarray) -> np.ndarray:
+    """Where each fiber of the segment rows ``rows`` ends along its guide (v_end), (R*F,) half floats: a
+    tapered fiber's ribbon narrows toward that end, as glsl/fibers/taper.glsl places it (ribbon.vert)."""
+    guides = scene.segments[rows, 19].astype(np.uint32)
+    return fiber_centers(lay, guides)[2].astype(np.float16).reshape(-1)
+
+
 # --------------------------------------------------------------------------------------------------
 # The renderer
 # --------------------------------------------------------------------------------------------------
@@ -261,6 +272,7 @@ class ExplicitRenderer:
         self._rows: moderngl.Buffer | None = None
         self._fibers: moderngl.Buffer | None = None
         self._colors: moderngl.Buffer | None = None     # the scene's per-guide colours (a groom file's)
+        self._ends: moderngl.Buffer | None = None       # v_end per instance, only when fibers taper
         self._vaos: dict[int, moderngl.VertexArray] = {}
         self._targets: dict[tuple, moderngl.Framebuffer] = {}
         # bound while targets are released: moderngl restores the previous binding after creating a
@@ -284,10 +296,16 @@ class ExplicitRenderer:
         rows = scene.segments if pl.rows else np.zeros((1, scene.segments.shape[1]), np.float32)
         self._rows = self.ctx.buffer(np.ascontiguousarray(rows, np.float32).tobytes())
         self._fibers = self.ctx.buffer(reserve=max(1, pl.instances) * INSTANCE_BYTES)
+        if pl.tapered:
+            self._ends = self.ctx.buffer(reserve=max(1, pl.instances) * TAPER_BYTES)
         per_batch = max(1, GEN_INSTANCES // pl.fibers_per_container)
         for a in range(0, pl.rows, per_batch):
-            recs, _ = segment_fibers(scene, lay, np.arange(a, min(pl.rows, a + per_batch)))
+            rows_a = np.arange(a, min(pl.rows, a + per_batch))
+            recs, _ = segment_fibers(scene, lay, rows_a)
             self._fibers.write(recs.tobytes(), offset=a * pl.fibers_per_container * INSTANCE_BYTES)
+            if pl.tapered:
+                self._ends.write(fiber_ends(scene, lay, rows_a).tobytes(),
+                                 offset=a * pl.fibers_per_container * TAPER_BYTES)
         self.stats = BuildStats(pl.fibers, pl.instances, self.gpu_bytes, time.perf_counter() - t0)
         return self.stats
 
@@ -316,7 +334,7 @@ class ExplicitRenderer:
     @property
     def gpu_bytes(self) -> int:
         """Bytes of GPU buffers holding the fibers and their segments (render targets not included)."""
-        return sum(b.size for b in (self._rows, self._fibers) if b is not None)
+        return sum(b.size for b in (self._rows, self._fibers, self._ends) if b is not None)
 
     def _bind_guide_colors(self, prog: moderngl.Program, p: Params) -> None:
         """The same per-guide colours as Renderer (glsl/shading/fiber_color.glsl, binding 4)."""
@@ -332,10 +350,10 @@ class ExplicitRenderer:
         for vao in self._vaos.values():
             vao.release()
         self._vaos.clear()
-        for b in (self._rows, self._fibers, self._colors):
+        for b in (self._rows, self._fibers, self._colors, self._ends):
             if b is not None:
                 b.release()
-        self._rows = self._fibers = self._colors = None
+        self._rows = self._fibers = self._colors = self._ends = None
 
     def release_targets(self) -> None:
         if not self._targets:
@@ -348,7 +366,9 @@ class ExplicitRenderer:
     def program(self, p: Params) -> moderngl.Program:
         defines = {"MAX_RINGS": MAX_RINGS, "SHADING_MODEL": SHADING_MODELS[p["look.model"]],
                    # a traced shadow needs the virtual traversal; the baseline keeps the density estimate
-                   "SHADOW_MODE": 0 if p["look.self_shadow"] == "off" else 1}
+                   "SHADOW_MODE": 0 if p["look.self_shadow"] == "off" else 1,
+                   # the ribbons narrow toward each fiber's tip only where set_scene stored the ends
+                   "TAPER": int(self._ends is not None)}
         return self.programs.get(self.ctx, "explicit/ribbon.vert", "explicit/ribbon.frag", defines)
 
     def _vao(self, prog: moderngl.Program) -> moderngl.VertexArray:
@@ -365,8 +385,10 @@ class ExplicitRenderer:
                     ("aGuide", "f", self._rows, "1f", 76, ROW_BYTES, F),
                     ("aFiber", "f", self._fibers, "4f2", 0, INSTANCE_BYTES, 1),
                     ("aEnd", "f", self._fibers, "1f2", 8, INSTANCE_BYTES, 1),
-                    ("aLook", "i", self._fibers, "1u2", 10, INSTANCE_BYTES, 1)):
-                vao.bind(prog[name].location, cls, buf, fmt, offset, stride, divisor)
+                    ("aLook", "i", self._fibers, "1u2", 10, INSTANCE_BYTES, 1),
+                    ("aFiberEnd", "f", self._ends, "1f2", 0, TAPER_BYTES, 1)):
+                if name in prog and buf is not None:
+                    vao.bind(prog[name].location, cls, buf, fmt, offset, stride, divisor)
             self._vaos[key] = vao
         return self._vaos[key]
 
@@ -394,6 +416,7 @@ class ExplicitRenderer:
             "uLightDir": tuple(light_direction(p)), "uLightIntensity": p["look.light_intensity"],
             "uAmbient": p["look.ambient"], "uRoughness": p["look.roughness"],
             "uTintVariation": p["look.tint_variation"], "uRoughnessVariation": p["look.roughness_variation"],
+            "uTipWidth": p["strand.tip_width"], "uTaperStart": p["strand.taper_start"],
             **_look_uniforms(p, lay.fibers_per_container),
         }
         if self._key[0] == "fibers made elsewhere":   # set_fibers: one "ring", the uploaded count and radius
@@ -436,7 +459,9 @@ class ExplicitRenderer:
         self._set_uniforms(prog, p, cam, size, offset)
         self._bind_guide_colors(prog, p)
         if self.plan.instances:
-            self._vao(prog).render(moderngl.TRIANGLE_STRIP, vertices=4, instances=self.plan.instances)
+            # a tapered ribbon bends where its fiber starts to thin: two quads (ribbon.vert)
+            strip = 6 if self._ends is not None else 4
+            self._vao(prog).render(moderngl.TRIANGLE_STRIP, vertices=strip, instances=self.plan.instances)
             frame.draws = 1
         if "color" in outputs:
             rgba = _read(fbo, 0, "f1", size)
@@ -469,7 +494,8 @@ def _look_uniforms(p: Params, fibers_per_container: int) -> dict:
 
 
 def _geometry_key(p: Params) -> tuple:
-    return tuple(p[k] for k in GEOMETRY_KEYS)
+    # whether fibers taper decides whether their ends are stored; how much they taper is a uniform
+    return (*(p[k] for k in GEOMETRY_KEYS), fibers.tapered(p))
 
 
 def _read(fbo: moderngl.Framebuffer, attachment: int, dtype: str, size) -> np.ndarray:

@@ -13,6 +13,9 @@
 #ifndef SHADING_MODEL
 #define SHADING_MODEL 0
 #endif
+#ifndef TAPER
+#define TAPER 0
+#endif
 
 in vec3 vPos;
 in vec3 vTangent;
@@ -25,6 +28,7 @@ flat in vec2 vEnds;             // 1: the segment is the guide's root / tip
 flat in uvec4 vId;
 flat in vec3 vLook;
 in float vV;                    // guide parameter at this point of the ribbon
+flat in float vTilt;            // the fiber's radius falls this much per unit length (its tapered tip)
 
 uniform float uRoughness;
 uniform float uRoughnessVariation;
@@ -73,6 +77,10 @@ void main() {
     vec3 F = cross(S, R);
     float u = clamp(vAcross, -1.0, 1.0);
     vec3 N = normalize(S * u + F * sqrt(max(0.0, 1.0 - u * u)));
+#if TAPER
+    // a cone's normal leans toward its apex: n - R'(s) T for a radius R falling along the fiber
+    N = normalize(N + vTilt * R);
+#endif
     vec3 T = normalize(vShadeTangent);
 
     vec3 color = fiber_color(vId.x - 1u, vV, vLook.x - 0.5);
