@@ -255,6 +255,7 @@ class Renderer:
             "uTwistPattern": TWIST_PATTERNS[p["shape.twist_pattern"]],
             "uCurlAmplitude": p["shape.curl_amplitude"] / K, "uCurlFrequency": p["shape.curl_frequency"],
             "uCurlPattern": CURL_PATTERNS[p["shape.curl_pattern"]],
+            "uTipWidth": p["strand.tip_width"], "uTaperStart": p["strand.taper_start"],
         }
         for name, value in values.items():
             if name in prog:
@@ -767,7 +768,8 @@ def model_defines(p: Params, mode: str, cost: bool) -> dict[str, int]:
             "HASH_THESIS": int(p["fibers.hash"] == "thesis"), "COST_PASS": int(cost),
             "SHAPED": int(is_shaped(p)), "SHAPE_CURL": shape_curl_define(p),
             "SHAPE_ELLIPSOID": int(p["shape.ellipsoid"] > 0), "SHAPE_TWIST": int(p["shape.twist"] != 0),
-            "SHADING_MODEL": SHADING_MODELS[p["look.model"]], "SHADOW_MODE": SHADOW_MODES[p["look.self_shadow"]]}
+            "SHADING_MODEL": SHADING_MODELS[p["look.model"]], "SHADOW_MODE": SHADOW_MODES[p["look.self_shadow"]],
+            "TAPER": int(fibers.tapered(p))}       # glsl/fibers/taper.glsl: tip width 1 builds no cone
 
 
 def shape_curl_define(p: Params) -> int:

@@ -18,6 +18,7 @@
 
 #include "common/epsilon.glsl"
 #include "geometry/intervals.glsl"
+#include "fibers/taper.glsl"
 #include "geometry/container.glsl"
 #include "fibers/layout.glsl"
 #include "fibers/fiber_entry.glsl"
@@ -50,13 +51,18 @@ int chord_pieces(float L, float dv, float sa, int ring, float eLo) {
 }
 
 // Entry parameter of the ray into one fiber over the piece [P0.s, P1.s], INF on a miss; kind: 0 the
-// fiber's side, 1 its tip (length cut), 2 the piece's start (the ray was inside the fiber there).
+// fiber's side, 1 its tip (length cut), 2 the piece's start (the ray was inside the fiber there), 3 the
+// side of its tapered part (TAPER).
 // The length cut as traverse.glsl's fiber_entry places it, with the ray's reciprocals (FiberRay); invLen
 // is 1 / the piece's length, 0 for a piece of no length (the test is then whether P0 is inside).
 float piece_entry(Segment seg, FiberRay fr, RingPoint P0, RingPoint P1, float invLen, vec4 curlStep,
                   vec2 rest, float curlPhase, float vEnd, out int kind) {
     float z = (vEnd - seg.v0) * fr.zScale;
     float zc = vEnd >= seg.v1 ? INF : z / (seg.r0 + seg.kappa * z);
+#if TAPER
+    vec2 line = taper_line(seg.v0, seg.v1, fr.zScale, seg.r0, seg.kappa, vEnd);
+    zc = min(zc, taper_apex(line));
+#endif
     float zt = (zc - fr.oz) * fr.invDz;
     vec2 zs = fr.dz > 0.0 ? vec2(-INF, zt) : (fr.dz < 0.0 ? vec2(zt, INF)
             : (fr.oz <= zc ? vec2(-INF, INF) : vec2(INF, -INF)));
@@ -72,9 +78,18 @@ float piece_entry(Segment seg, FiberRay fr, RingPoint P0, RingPoint P1, float in
     vec2 q1 = P1.p - ring_frame_center(rest, curl1, P1);
     vec2 dq = (q1 - q0) * invLen;
     vec2 e = circle_interval(q0, dq, vec2(0.0), uFiberRadius);
+#if TAPER
+    // the tapered part: a cone about the moving centre, its radius linear along the piece as in height
+    float rho0 = uFiberRadius * (line.x + line.y * (fr.oz + P0.s * fr.dz));
+    vec2 cone = cone_interval(q0, dq, rho0, uFiberRadius * line.y * fr.dz);
+    float sIn = max(max(P0.s + e.x, P0.s + cone.x), lo);
+    float sOut = min(min(P0.s + e.y, P0.s + cone.y), hi);
+    kind = sIn == P0.s + e.x ? 0 : (sIn == P0.s + cone.x ? 3 : (sIn == zs.x ? 1 : 2));
+#else
     float sIn = max(P0.s + e.x, lo);
     float sOut = min(P0.s + e.y, hi);
     kind = sIn == P0.s + e.x ? 0 : (sIn == zs.x ? 1 : 2);
+#endif
     return vEnd > seg.v0 && sIn <= sOut ? sIn : INF;
 }
 

@@ -5,6 +5,7 @@
 #include "common/epsilon.glsl"
 #include "geometry/container.glsl"
 #include "fibers/layout.glsl"
+#include "fibers/taper.glsl"
 
 #ifndef FIBERS_FIBER_ENTRY_GLSL
 #define FIBERS_FIBER_ENTRY_GLSL
@@ -44,12 +45,17 @@ FiberRay fiber_ray(Segment seg, UnitRay ur) {
 
 // One fiber: a capped vertical cylinder of radius uFiberRadius about c, from the container's root plane
 // to the fiber's length cut at guide parameter vEnd, inside the container interval [s0, s1]. Returns the
-// entry parameter or INF; kind: 0 through the fiber's side, 1 its tip, 2 a container boundary.
+// entry parameter or INF; kind: 0 through the fiber's side, 1 its tip, 2 a container boundary, 3 the
+// side of its tapered part (TAPER: the cylinder cut by the cone of taper.glsl, ending at its apex).
 // Roots as in circle_interval (intervals.glsl), with the discriminant factored so it never cancels.
 float fiber_entry(Segment seg, FiberRay fr, vec2 c, float vEnd, out int kind) {
     // the length cut in unit space: none past the segment's tip end, no fiber before its root end
     float z = (vEnd - seg.v0) * fr.zScale;
     float zc = vEnd >= seg.v1 ? INF : z / (seg.r0 + seg.kappa * z);
+#if TAPER
+    vec2 line = taper_line(seg.v0, seg.v1, fr.zScale, seg.r0, seg.kappa, vEnd);
+    zc = min(zc, taper_apex(line));
+#endif
     vec2 oc = fr.o2 - c;
     float b = dot(oc, fr.d2);
     float cc = dot(oc, oc) - fr.rf2;
@@ -63,9 +69,17 @@ float fiber_entry(Segment seg, FiberRay fr, vec2 c, float vEnd, out int kind) {
     float zs = (zc - fr.oz) * fr.invDz;
     vec2 zr = fr.dz > 0.0 ? vec2(-INF, zs) : (fr.dz < 0.0 ? vec2(zs, INF)
             : (fr.oz <= zc ? vec2(-INF, INF) : vec2(INF, -INF)));
+#if TAPER
+    // the radius is linear in the height, so along the ray too: rho0 + rho1 s
+    vec2 cone = cone_interval(oc, fr.d2, uFiberRadius * (line.x + line.y * fr.oz), uFiberRadius * line.y * fr.dz);
+    float sIn = max(max(max(cyl.x, cone.x), zr.x), fr.s0);
+    float sOut = min(min(min(cyl.y, cone.y), zr.y), fr.s1);
+    kind = sIn == cyl.x ? 0 : (sIn == cone.x ? 3 : (sIn == zr.x ? 1 : 2));
+#else
     float sIn = max(max(cyl.x, zr.x), fr.s0);
     float sOut = min(min(cyl.y, zr.y), fr.s1);
     kind = sIn == cyl.x ? 0 : (sIn == zr.x ? 1 : 2);
+#endif
     bool hit = disc >= 0.0 && sIn <= sOut && vEnd > seg.v0;
     return hit ? sIn : INF;
 }

@@ -14,7 +14,8 @@ struct FiberHit {
     float s;        // unit-space parameter, INF on a miss
     int ring;
     int fiber;
-    int kind;       // 0 fiber side, 1 fiber tip (length cut), 2 container boundary (cap or joint)
+    int kind;       // 0 fiber side, 1 fiber tip (length cut), 2 container boundary (cap or joint),
+                    // 3 the side of a tapered fiber's cone (taper.glsl)
     vec2 c;         // fiber centre in unit space
     vec2 dcdv;      // how the centre moves with the guide parameter (curved fibers; 0 when straight)
 };

@@ -3,6 +3,7 @@
 //                       (l0, l1): the fiber's width over the segment is uFiberRadius * min(1, l0 + l1 Z)
 //   float taper_apex(vec2 line)                 unit height where the width reaches 0 (INF: no thinning)
 //   vec2  cone_interval(vec2 oc, vec2 d, float rho0, float rho1)   ray interval in |oc + t d| <= rho0 + rho1 t
+//   float taper_normal_z(float slope, float rho, float z, float kappa)  what the cone adds to a side normal
 // Along its own length (guide parameter v, 0 at the root, vEnd at its tip) a fiber's width is 1 up to
 // v_s = uTaperStart * vEnd, then falls linearly to uTipWidth at vEnd. Within one segment the width is kept
 // linear in the unit-space height Z, through the exact values at the two ends of the segment's thinning
@@ -18,6 +19,10 @@
 #ifndef FIBERS_TAPER_GLSL
 #define FIBERS_TAPER_GLSL
 
+#ifndef TAPER
+#define TAPER 0
+#endif
+
 uniform float uTipWidth;        // width at the fiber's own tip / its root width
 uniform float uTaperStart;      // fraction of the fiber's length where it starts to thin
 
@@ -26,7 +31,7 @@ uniform float uTaperStart;      // fraction of the fiber's length where it start
 // Z = zeta / (r0 + kappa zeta) is w_a w_b / (r0 zScale): no difference of nearby heights.
 vec2 taper_line(float v0, float v1, float zScale, float r0, float kappa, float vEnd) {
     float vS = uTaperStart * vEnd;
-    float dgdv = -(1.0 - uTipWidth) / max((1.0 - uTaperStart) * vEnd, 1e-30);
+    float dgdv = -(1.0 - uTipWidth) / max((1.0 - uTaperStart) * vEnd, EPS_DIVISOR);
     float vA = clamp(vS, v0, v1);
     float vB = min(vEnd, v1);
     float gA = 1.0 + dgdv * max(0.0, vA - vS);
@@ -65,6 +70,14 @@ vec2 cone_interval(vec2 oc, vec2 d, float rho0, float rho1) {
     vec2 level = b > 0.0 ? vec2(-INF, tb) : (b < 0.0 ? vec2(tb, INF)
                : (c <= 0.0 ? vec2(-INF, INF) : vec2(INF, -INF)));
     return a > 0.0 ? shallow : (a < 0.0 ? steep : level);
+}
+
+// The side normal of a fiber in the container's local frame is the gradient of |P.xy - c|^2 - rho(Z)^2
+// through the unit-space map: (radial, -kappa radial . P.xy - rho rho'(Z) (1 - kappa Z)), rho the radius
+// at the hit (|radial|), slope = rho'(Z) = fiber radius * l1; this returns the last term. (The centre's
+// own motion with Z, for curved fibers, is left out as for the untapered side.)
+float taper_normal_z(float slope, float rho, float z, float kappa) {
+    return -rho * slope * (1.0 - kappa * z);
 }
 
 #endif  // FIBERS_TAPER_GLSL

@@ -96,6 +96,15 @@ Shaded shade_fiber_hit(Segment seg, UnitRay ur, FiberHit hit, vec3 rd, uint segI
     vec2 radial = P.xy - hit.c;
     vec3 nLocal = hit.kind == 0 ? vec3(radial, -seg.kappa * dot(radial, P.xy))
                 : (hit.kind == 1 ? vec3(0.0, 0.0, 1.0) : -ur.d);
+#if TAPER
+    // the side of a tapered part (kind 3) leans toward the cone's apex (taper.glsl: taper_normal_z)
+    vec2 cRest;
+    float vEndHit;
+    fiber_center(seg.guide, max(hit.ring, 0), max(hit.fiber, 0), cRest, vEndHit);
+    vec2 line = taper_line(seg.v0, seg.v1, seg.h / (seg.v1 - seg.v0), seg.r0, seg.kappa, vEndHit);
+    nLocal = hit.kind == 3 ? vec3(radial, -seg.kappa * dot(radial, P.xy)
+                                          + taper_normal_z(uFiberRadius * line.y, length(radial), P.z, seg.kappa)) : nLocal;
+#endif
     mat3 worldFromLocal = mat3(seg.ex, seg.ey, seg.ez);
     vec3 N = normalize(worldFromLocal * nLocal);
     vec3 V = -rd;
