@@ -225,3 +225,32 @@ def test_explicit_ribbons_taper_like_the_virtual_fibers(renderer, explicit, name
     assert np.isfinite(ribbons.geom).all()
     blunt = explicit.render(p.replace(**{"strand.tip_width": 1.0}), cam, size, outputs=("ids",))
     assert (ribbons.ids[..., 0] > 0).sum() < 0.95 * (blunt.ids[..., 0] > 0).sum()
+
+
+# --- the OSL twin in Cycles --------------------------------------------------------------------------
+from tests.test_blender_export import SIZE as CYCLES_SIZE  # noqa: E402
+from tests.test_blender_export import _export, _render_like_a_farm, agreement, blender_test  # noqa: E402
+
+CYCLES_SETS = ("strand.tip_width=0", "strand.taper_start=0.3", "fibers.fiber_radius=0.04",
+               "fibers.length_jitter=0.5")
+
+
+@blender_test
+@pytest.mark.blender
+@pytest.mark.parametrize("name", ["default", "twisted-curled-1"])
+def test_osl_twin_tapers_like_the_preview(name, tmp_path):
+    """The exported shader in Cycles names the preview's fibers on pointed tips (straight and curved
+    traversals), and its exact mode equals its brute force in every pixel."""
+    from app import cli
+    gl = tmp_path / "gl.npy"
+    sets = [a for s in CYCLES_SETS for a in ("--set", s)]
+    assert cli.main(["render", name, *sets, "--size", CYCLES_SIZE, "--output", "id", "-o", str(gl)]) == 0
+    ids = {}
+    for mode in ("exact", "brute"):
+        _export(name, tmp_path / f"{mode}.blend", *CYCLES_SETS, f"quality.mode={mode}")
+        _render_like_a_farm(tmp_path / f"{mode}.blend", tmp_path / f"{mode}.npy", "--ids")
+        ids[mode] = np.load(tmp_path / f"{mode}.npy")
+    coverage, same_id, both = agreement(ids["exact"], np.load(gl))
+    assert both > 500
+    assert coverage >= 0.97 and same_id >= 0.95, (coverage, same_id)
+    assert np.array_equal(ids["exact"], ids["brute"])

@@ -76,6 +76,7 @@ EXPORTED_KEYS: tuple[str, ...] = (
     "scene.radius", "scene.length", "scene.taper",
     "fibers.rings", "fibers.phi_step", "fibers.phi_increment", "fibers.even_spacing", "fibers.fiber_radius",
     "fibers.radial_jitter", "fibers.angular_jitter", "fibers.length_jitter", "fibers.hash", "fibers.seed",
+    "strand.tip_width", "strand.taper_start",
     "shape.ellipsoid", "shape.curl_amplitude", "shape.curl_frequency", "shape.curl_pattern", "shape.twist",
     "shape.twist_pattern",
     "look.model", "look.color_mode", "look.color", "look.melanin", "look.melanin_redness",
