@@ -55,7 +55,7 @@ void main() {
     // the width line of this segment in unit height Z = z / w(z); z = r0 Z / (1 - kappa Z) undoes it
     float r0 = aRowA.w;
     float kappa = (aRowB.w - aRowA.w) / h;
-    vec2 line = taper_line(aRowC.w, aRowD.w, h / (aRowD.w - aRowC.w), r0, kappa, aFiberEnd);
+    vec2 line = taper_line(taper_seg(aRowC.w, aRowD.w, h / (aRowD.w - aRowC.w), r0, kappa), aFiberEnd);
     float zOne = line.y < 0.0 ? (1.0 - line.x) / line.y : INF;      // where the cone is as wide as the root
     float zApex = taper_apex(line);
     float tOne = zOne < INF && 1.0 - kappa * zOne > 0.0 ? r0 * zOne / (1.0 - kappa * zOne) / h : INF;

@@ -59,10 +59,6 @@ float piece_entry(Segment seg, FiberRay fr, RingPoint P0, RingPoint P1, float in
                   vec2 rest, float curlPhase, float vEnd, out int kind) {
     float z = (vEnd - seg.v0) * fr.zScale;
     float zc = vEnd >= seg.v1 ? INF : z / (seg.r0 + seg.kappa * z);
-#if TAPER
-    vec2 line = taper_line(seg.v0, seg.v1, fr.zScale, seg.r0, seg.kappa, vEnd);
-    zc = min(zc, taper_apex(line));
-#endif
     float zt = (zc - fr.oz) * fr.invDz;
     vec2 zs = fr.dz > 0.0 ? vec2(-INF, zt) : (fr.dz < 0.0 ? vec2(zt, INF)
             : (fr.oz <= zc ? vec2(-INF, INF) : vec2(INF, -INF)));
@@ -80,6 +76,7 @@ float piece_entry(Segment seg, FiberRay fr, RingPoint P0, RingPoint P1, float in
     vec2 e = circle_interval(q0, dq, vec2(0.0), uFiberRadius);
 #if TAPER
     // the tapered part: a cone about the moving centre, its radius linear along the piece as in height
+    vec2 line = taper_line(fr.ts, vEnd);
     float rho0 = uFiberRadius * (line.x + line.y * (fr.oz + P0.s * fr.dz));
     vec2 cone = cone_interval(q0, dq, rho0, uFiberRadius * line.y * fr.dz);
     float sIn = max(max(P0.s + e.x, P0.s + cone.x), lo);

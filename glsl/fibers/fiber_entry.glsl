@@ -24,6 +24,10 @@ struct FiberRay {
     float s0, s1;
     float rf2;      // fiber radius squared
     float zScale;   // guide parameter -> local height, (h / (v1 - v0))
+#if TAPER
+    float sa;       // |D.xy|
+    TaperSeg ts;    // what the fibers' width lines share (taper.glsl)
+#endif
 };
 
 FiberRay fiber_ray(Segment seg, UnitRay ur) {
@@ -40,6 +44,10 @@ FiberRay fiber_ray(Segment seg, UnitRay ur) {
     fr.s1 = ur.s1;
     fr.rf2 = uFiberRadius * uFiberRadius;
     fr.zScale = seg.h / (seg.v1 - seg.v0);
+#if TAPER
+    fr.sa = sqrt(a);
+    fr.ts = taper_seg(seg.v0, seg.v1, fr.zScale, seg.r0, seg.kappa);
+#endif
     return fr;
 }
 
@@ -52,10 +60,6 @@ float fiber_entry(Segment seg, FiberRay fr, vec2 c, float vEnd, out int kind) {
     // the length cut in unit space: none past the segment's tip end, no fiber before its root end
     float z = (vEnd - seg.v0) * fr.zScale;
     float zc = vEnd >= seg.v1 ? INF : z / (seg.r0 + seg.kappa * z);
-#if TAPER
-    vec2 line = taper_line(seg.v0, seg.v1, fr.zScale, seg.r0, seg.kappa, vEnd);
-    zc = min(zc, taper_apex(line));
-#endif
     vec2 oc = fr.o2 - c;
     float b = dot(oc, fr.d2);
     float cc = dot(oc, oc) - fr.rf2;
@@ -70,8 +74,15 @@ float fiber_entry(Segment seg, FiberRay fr, vec2 c, float vEnd, out int kind) {
     vec2 zr = fr.dz > 0.0 ? vec2(-INF, zs) : (fr.dz < 0.0 ? vec2(zs, INF)
             : (fr.oz <= zc ? vec2(-INF, INF) : vec2(INF, -INF)));
 #if TAPER
-    // the radius is linear in the height, so along the ray too: rho0 + rho1 s
-    vec2 cone = cone_interval(oc, fr.d2, uFiberRadius * (line.x + line.y * fr.oz), uFiberRadius * line.y * fr.dz);
+    // the radius is linear in the height, so along the ray too: rho0 + rho1 s; the cone's terms from the
+    // cylinder's (taper.glsl: cone_interval)
+    vec2 line = taper_line(fr.ts, vEnd);
+    float rho0 = uFiberRadius * (line.x + line.y * fr.oz);
+    float rho1 = uFiberRadius * line.y * fr.dz;
+    float ar = abs(rho1);
+    float m = length(rho0 * fr.d2 - rho1 * oc);
+    vec2 cone = cone_roots((fr.sa - ar) * (fr.sa + ar), b - rho0 * rho1, cc + (uFiberRadius - rho0) * (uFiberRadius + rho0),
+                           (m - crs) * (m + crs), rho0, rho1);
     float sIn = max(max(max(cyl.x, cone.x), zr.x), fr.s0);
     float sOut = min(min(min(cyl.y, cone.y), zr.y), fr.s1);
     kind = sIn == cyl.x ? 0 : (sIn == cone.x ? 3 : (sIn == zr.x ? 1 : 2));

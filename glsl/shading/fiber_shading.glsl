@@ -101,7 +101,7 @@ Shaded shade_fiber_hit(Segment seg, UnitRay ur, FiberHit hit, vec3 rd, uint segI
     vec2 cRest;
     float vEndHit;
     fiber_center(seg.guide, max(hit.ring, 0), max(hit.fiber, 0), cRest, vEndHit);
-    vec2 line = taper_line(seg.v0, seg.v1, seg.h / (seg.v1 - seg.v0), seg.r0, seg.kappa, vEndHit);
+    vec2 line = taper_line(taper_seg(seg.v0, seg.v1, seg.h / (seg.v1 - seg.v0), seg.r0, seg.kappa), vEndHit);
     nLocal = hit.kind == 3 ? vec3(radial, -seg.kappa * dot(radial, P.xy)
                                           + taper_normal_z(uFiberRadius * line.y, length(radial), P.z, seg.kappa)) : nLocal;
 #endif
