@@ -101,6 +101,27 @@ def test_parameters_have_ranges_and_say_what_they_do():
     assert fibers.tapered(Params({"strand.tip_width": 0.99}))
 
 
+def test_presets_set_and_osl_export_carry_the_taper(tmp_path):
+    """A preset's [strand] table, --set and the OSL export's parameter block all reach the two keys; a bad
+    value in a preset names the file, the line and the range."""
+    from app.export.osl import osl_source
+    from app.params import parse_assignment
+    from app.presets import PresetError, load_preset, resolve_params
+
+    path = tmp_path / "pointed.toml"
+    path.write_text('version = 2\nname = "pointed"\n\n[strand]\ntip_width = 0.1\ntaper_start = 0.6\n')
+    p = load_preset(path).params
+    assert (p["strand.tip_width"], p["strand.taper_start"]) == (0.1, 0.6)
+    assert parse_assignment("strand.tip_width=0") == ("strand.tip_width", 0)
+    q, _ = resolve_params("default", ["strand.tip_width=0.25"])
+    assert q["strand.tip_width"] == 0.25
+    src = osl_source(q)
+    assert "strand_tip_width" in src and "strand_taper_start" in src and "0.25" in src
+    (tmp_path / "bad.toml").write_text('version = 2\n[strand]\ntip_width = 2.0\n')
+    with pytest.raises(PresetError, match=r"bad.toml:3.*strand.tip_width.*\[0, 1\]"):
+        load_preset(tmp_path / "bad.toml")
+
+
 # --- the shader ------------------------------------------------------------------------------------
 @pytest.mark.parametrize("name", list(SCENES))
 def test_tapered_exact_equals_brute(renderer, name):
@@ -187,6 +208,27 @@ def test_finite_at_the_ends_of_the_range(renderer, values):
         assert not exact.hit.any()
     else:
         assert exact.hit.any()
+
+
+@pytest.mark.parametrize("radius", [1e-6, 0.1])
+@pytest.mark.parametrize("elevation", [89.9, -89.9, 0.0])
+def test_grazing_and_axial_rays_on_pointed_fibers(renderer, radius, elevation):
+    """Rays down the fibers onto their points (steeper than any cone's side), up from below the roots, and
+    level across them; fibers from 1e-6 to the ring's full half width: finite, exact == brute, and the
+    float64 judge agrees."""
+    values = {**ONE, "fibers.fiber_radius": radius, "fibers.rings": 5, **POINTED}
+    p, scene, cam = setup(renderer, values, {"elevation": elevation, "azimuth": 17.0})
+    size = (64, 48)
+    exact = renderer.render(p, cam, size, outputs=("color", "ids", "geom"), mode="exact")
+    brute = renderer.render(p, cam, size, outputs=("ids",), mode="brute")
+    assert np.isfinite(exact.geom).all()
+    assert np.all(exact.ids[..., :3] == brute.ids[..., :3])
+    ref = reference_ids(scene, p, cam, size)
+    got = gpu_ids(exact)
+    hit = (ref[..., 0] > 0) | (got[..., 0] > 0)
+    if radius > 1e-3:                                  # 1e-6 is far below a pixel: nothing need show
+        assert hit.sum() > 30
+    assert (np.all(ref == got, -1) | ~hit).sum() >= hit.size - max(1, hit.sum() // 200)
 
 
 def test_tip_width_one_is_todays_image(renderer):
