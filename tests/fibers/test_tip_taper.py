@@ -14,7 +14,7 @@ import pytest
 from app import fibers, reference
 from app.params import ParamError, Params
 from app.render.explicit import ExplicitRenderer, compare_frames, plan
-from tests.helpers import gpu_ids, reference_ids, setup
+from tests.support.ids import gpu_ids, reference_ids, setup
 
 SIZE = (128, 96)
 ONE = {"scene.generator": "single", "scene.radius": 1.0, "scene.length": 4.0, "fibers.rings": 5,
@@ -270,8 +270,8 @@ def test_explicit_ribbons_taper_like_the_virtual_fibers(renderer, explicit, name
 
 
 # --- the OSL twin in Cycles --------------------------------------------------------------------------
-from tests.test_blender_export import SIZE as CYCLES_SIZE  # noqa: E402
-from tests.test_blender_export import _export, _render_like_a_farm, agreement, blender_test  # noqa: E402
+from tests.export.test_blender_export import SIZE as CYCLES_SIZE  # noqa: E402
+from tests.export.test_blender_export import _export, _render_like_a_farm, agreement, blender_test  # noqa: E402
 
 CYCLES_SETS = ("strand.tip_width=0", "strand.taper_start=0.3", "fibers.fiber_radius=0.04",
                "fibers.length_jitter=0.5")
