@@ -1,26 +1,31 @@
-"""Tip taper in the looks suite: python docs/bench/looks-taper/run.py docs/bench/looks-taper [reference tip_taper].
+"""Tip taper in the looks suite: ``python docs/bench/looks-taper/run.py docs/bench/looks-taper``.
 
 Renders the five shared grooms before / with tip taper / with tip taper and length jitter 0.5 against the
-strand reference (app/bench/strand_reference.py); writes the sheets (reference t = 0 only) and rows_t<T>.json.
+suite's own reference (app/bench/strand_reference.py, interpolated children) at 640x360; writes the sheets
+and rows.json into the folder given.
 """
-import sys, json, time
-sys.path.insert(0, '.')
+import json
+import sys
+import time
 from pathlib import Path
-from app.gl.context import create_headless
-from app.bench.suites import Env
-from app.bench import looks
-out = Path(sys.argv[1]); out.mkdir(parents=True, exist_ok=True)
-t = float(sys.argv[2]) if len(sys.argv) > 2 else 0.0
-hc = create_headless()
-env = Env(hc.ctx, out=str(out) if t == 0 else None)
-variants = {"before": [], "tip taper": ["strand.tip_width=0", "strand.taper_start=0.4"],
-            "tip taper, length jitter 0.5": ["strand.tip_width=0", "strand.taper_start=0.4", "fibers.length_jitter=0.5"]}
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[3]))
+from app.bench import looks  # noqa: E402
+from app.bench.suites import Env  # noqa: E402
+from app.gl.context import create_headless  # noqa: E402
+
+VARIANTS = {"before": [], "tip taper": ["strand.tip_width=0", "strand.taper_start=0.4"],
+            "tip taper, length jitter 0.5": ["strand.tip_width=0", "strand.taper_start=0.4",
+                                             "fibers.length_jitter=0.5"]}
+
+out = Path(sys.argv[1])
+out.mkdir(parents=True, exist_ok=True)
+env = Env(create_headless().ctx, out=str(out))
 rows = []
 for cfg in looks.configs("full"):
-    cfg = {**cfg, "tip_taper": t}
     t0 = time.time()
-    r = looks.run(env, cfg, variants)
-    rows += r
-    for x in r:
-        print(x["groom"], x["variant"], x.get("iou"), x.get("orientation_deg"), x.get("covered_virtual"), x.get("luma_virtual"), x.get("ms"), flush=True)
-(out / f"rows_t{t}.json").write_text(json.dumps(rows, indent=1))
+    for r in looks.run(env, {**cfg, "references": (looks.REFERENCE,)}, VARIANTS):
+        rows.append(r)
+        print(r["groom"], "|", r["variant"], "|", r.get("iou"), r.get("orientation_deg"), r.get("covered_virtual"),
+              r.get("luma_virtual"), f"{time.time() - t0:.0f} s", flush=True)
+(out / "rows.json").write_text(json.dumps(rows, indent=1))
