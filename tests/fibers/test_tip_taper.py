@@ -51,7 +51,9 @@ def test_width_line_is_the_profile_at_its_knots_and_never_wider():
         v0, v1, r0, r1 = edges[k], edges[k + 1], r[k], r[k + 1]
         kappa = (r1 - r0) / h
         l0, l1 = fibers.taper_line(tp, v0, v1, h / (v1 - v0), r0, kappa, v_end)
-        Z = lambda v: (v - v0) / (v1 - v0) * h / (r0 + kappa * (v - v0) / (v1 - v0) * h)  # noqa: E731
+        def Z(v, v0=v0, v1=v1, r0=r0, kappa=kappa):
+            z = (v - v0) / (v1 - v0) * h
+            return z / (r0 + kappa * z)
         for v in (v0, v1, tp.start * v_end, v_end):
             inside = (v >= v0) & (v <= v1) & (v <= v_end) & (v_end > v0) & (v >= tp.start * v_end - 1e-12)
             L = l0 + l1 * Z(np.clip(v, v0, v1))
@@ -126,7 +128,7 @@ def test_presets_set_and_osl_export_carry_the_taper(tmp_path):
 @pytest.mark.parametrize("name", list(SCENES))
 def test_tapered_exact_equals_brute(renderer, name):
     values, camera = SCENES[name]
-    p, scene, cam = setup(renderer, values, camera)
+    p, _, cam = setup(renderer, values, camera)
     exact = renderer.render(p, cam, SIZE, outputs=("ids", "cost", "geom"), mode="exact")
     brute = renderer.render(p, cam, SIZE, outputs=("ids",), mode="brute")
     assert exact.hit.sum() > 300

@@ -4,7 +4,6 @@ python docs/bench/looks-taper/cost.py [N] [groom ...]; off, the taper built in a
 on (tip 0, start 0.5), and a plain thinner fiber for comparison."""
 import sys, time
 sys.path.insert(0, '.')
-import numpy as np
 from app.gl.context import create_headless
 from app.gl.shaders import ProgramCache
 from app.bench.grooms import make_subject, DEFAULT
