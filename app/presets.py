@@ -506,7 +506,7 @@ DEFAULT_PRESET = "default"   # the look a command without a target renders
 # on a generated cylinder means the same on a groom's strand containers.
 # A new parameter group must be put in one of the two (tests/test_presets.py fails until it is): strand
 # controls such as tip taper or frizz are the look; a control that decides which containers exist is the shot.
-LOOK_GROUPS: tuple[str, ...] = ("fibers", "shape", "look", "light")
+LOOK_GROUPS: tuple[str, ...] = ("fibers", "strand", "shape", "look", "light")
 SHOT_GROUPS: tuple[str, ...] = ("scene", "camera", "quality")
 
 

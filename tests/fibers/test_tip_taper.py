@@ -119,6 +119,12 @@ def test_presets_set_and_osl_export_carry_the_taper(tmp_path):
     assert q["strand.tip_width"] == 0.25
     src = osl_source(q)
     assert "strand_tip_width" in src and "strand_taper_start" in src and "0.25" in src
+    # a preset's taper is part of its look: --preset puts it on a groom, which keeps its own scene
+    from tests.support.paths import HAIR_DATA
+    groom = HAIR_DATA / "Bangs_100.hair"
+    if groom.exists():
+        g, _ = resolve_params(str(groom), [], look=str(path))
+        assert g["strand.tip_width"] == 0.1 and g["scene.generator"] == "groom"
     (tmp_path / "bad.toml").write_text('version = 2\n[strand]\ntip_width = 2.0\n')
     with pytest.raises(PresetError, match=r"bad.toml:3.*strand.tip_width.*\[0, 1\]"):
         load_preset(tmp_path / "bad.toml")
