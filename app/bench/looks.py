@@ -2,8 +2,9 @@
 
 The reference is ``strand_reference``: the file's strands with child strands interpolated between them
 (``REFERENCE``; the full level also shows the earlier "disc" reference, children in a disc around each
-strand, whose rows carry no targets), drawn by the explicit baseline at the same camera, light and look. Per groom and per variant of the parameters (today
-one, ``before``: the groom's defaults; the strand-controls work adds ``after``), two numbers:
+strand, whose rows carry no targets), drawn by the explicit baseline at the same camera, light and look.
+Per groom and per variant of the parameters (today one, ``before``: the groom's defaults; the
+strand-controls work adds ``after``), two numbers:
 
 coverage IoU
     Coverage is the hit mask (fiber id != 0, the id output; ``--alpha`` writes the same pixels). Each mask
@@ -274,7 +275,8 @@ def write_sheet(path: Path, groom: str, refs, shown) -> Path:
     return path
 
 
-COLUMNS = [("groom", "groom"), ("variant", "variant"), ("reference", "reference"), ("status", "status"), ("iou", "coverage IoU"),
+COLUMNS = [("groom", "groom"), ("variant", "variant"), ("reference", "reference"), ("status", "status"),
+           ("iou", "coverage IoU"),
            ("orientation_deg", "orientation median deg"), ("oriented_frac", "compared px"),
            ("virtual_fibers", "vfiber fibers"), ("reference_fibers", "reference fibers"),
            ("children", "children/strand"), ("capped", "capped"), ("reference_fiber_radius", "child radius / R"),

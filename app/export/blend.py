@@ -48,7 +48,7 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -433,13 +433,15 @@ def make_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
         prog="vfiber export-blend",
         description="Write a .blend that Blender Cycles renders as it is: every container of the scene on one "
-                    "mesh, the look's OSL shader embedded, the camera, lights (key, fill, rim, environment) and background of the preview. "
+                    "mesh, the look's OSL shader embedded, the camera, lights (key, fill, rim, environment) "
+                    "and background of the preview. "
                     "See docs/osl.md.")
     ap.add_argument("target", metavar="TARGET", nargs="?",
                     help="preset name or .toml file, or a groom file (.hair .data .tfx .ply)")
     ap.add_argument("--params-json", metavar="FILE", help=argparse.SUPPRESS)  # the viewer's current parameters
     ap.add_argument("-o", dest="output", metavar="OUT.blend", help="output file (default: TARGET.blend)")
-    ap.add_argument("--size", default="640x360", help="render resolution WIDTHxHEIGHT (default 640x360, as vfiber render)")
+    ap.add_argument("--size", default="640x360",
+                    help="render resolution WIDTHxHEIGHT (default 640x360, as vfiber render)")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                     help="override a parameter, e.g. --set fibers.rings=20 (repeatable)")
     ap.add_argument("--preset", dest="look", metavar="LOOK", help="a preset's look on a groom TARGET (its "

@@ -248,7 +248,8 @@ class Renderer:
             "uAmbient": p["look.ambient"], "uBaseColor": look.base_color(p), "uRoughness": p["look.roughness"],
             "uTipColor": look.tip_color(p), "uTipBlend": p["look.tip_blend"], "uTipStart": p["look.tip_start"],
             "uGuideColors": int(p["look.color_source"] == "file" and self.scene.guide_colors is not None),
-            "uExposureScale": 2.0 ** p["look.exposure"], "uFiberDensity": look.fiber_density(p, lay.fibers_per_container),
+            "uExposureScale": 2.0 ** p["look.exposure"],
+            "uFiberDensity": look.fiber_density(p, lay.fibers_per_container),
             "uTintVariation": p["look.tint_variation"], "uRoughnessVariation": p["look.roughness_variation"],
             "uShadowDensity": p["look.shadow_density"],
             "uEllipsoid": p["shape.ellipsoid"], "uTwist": p["shape.twist"],
@@ -711,9 +712,9 @@ def draw_ranges(p: Params, scene: Scene, mode: str, rays: int = 1, walks: int = 
     Fast and exact test a ring's candidates on each piece of the ray in that ring, at most
     ``candidate_caps`` of them (curved: the loop passes of one arc, all its chord pieces included). A batch
     visits a straight ring on its front and back pieces, and the deepest pieces of its lanes (any ring, the
-    costliest one bounds them); a curved ring on up to three arcs (glsl/fibers/shaped.glsl). Rings are packed into draws greedily, a
-    ring split when it alone is too much. Every bundled layout needs one draw; 64 rings of 0.01 degree
-    fibers, or curled fibers whose reach is the whole ring, need several, and the depth test keeps the
+    costliest one bounds them); a curved ring on up to three arcs (glsl/fibers/shaped.glsl). Rings are packed
+    into draws greedily, a ring split when it alone is too much. Every bundled layout needs one draw; 64 rings
+    of 0.01 degree fibers, or curled fibers whose reach is the whole ring, need several, and the depth test keeps the
     nearest hit across them as it does in brute mode. The bound holds with the loops after the ring loop
     (curved: the arcs) in ring order (uRingOrder), which the renderer sets whenever there is more than one
     draw or ``needs_ring_order``. ``rays``: traversals per invocation; ``walks``: walks through the

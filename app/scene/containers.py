@@ -194,14 +194,14 @@ class Scene:
         hi = np.maximum(s[:, 0:3], s[:, 4:7]) + r
         return lo.min(0) + self.origin, hi.max(0) + self.origin
 
-    def translated(self, offset) -> "Scene":
+    def translated(self, offset) -> Scene:
         """The same scene moved in world space: only the float64 origin changes, never the float32 data."""
         return Scene(self.segments.copy(), self.origin + np.asarray(offset, np.float64), self.name, self.n_guides,
                      None if self.guide_colors is None else self.guide_colors.copy())
 
     @staticmethod
     def from_polylines(polylines: list[np.ndarray], radii, *, taper: float = 0.0, name: str = "scene",
-                       origin=None) -> "Scene":
+                       origin=None) -> Scene:
         """Containers from guide polylines (world units, float64).
 
         ``radii``: one root radius per guide, or a single number. The radius falls linearly with arc length

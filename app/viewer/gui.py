@@ -672,7 +672,8 @@ def stats_lines(state: AppState) -> list[str]:
     if state.final_held:
         lines.append(f"final frame waits (about {_duration(s.estimate_seconds)}): Render anyway, in the panel")
     if state.pinned is not None and state.view.compare != "off":
-        lines.append(f"A: {state.pinned_name} | B: live" if state.view.compare == "split" else f"showing A: {state.pinned_name}")
+        split = state.view.compare == "split"
+        lines.append(f"A: {state.pinned_name} | B: live" if split else f"showing A: {state.pinned_name}")
     return lines
 
 

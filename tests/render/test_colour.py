@@ -418,7 +418,7 @@ def test_osl_fiber_color_matches_numpy_in_cycles(tmp_path):
     base, tc = look.base_color(p), look.tip_color(p)
     body = "\n".join([
         f"    if (k < {n}) {{",
-        "        value = vf_fiber_color(color(%r, %r, %r), color(%r, %r, %r), a_use[k]," % (*base, *tc),
+        "        value = vf_fiber_color(color({!r}, {!r}, {!r}), color({!r}, {!r}, {!r}), a_use[k],".format(*base, *tc),
         "                               color(a_r0[k], a_r1[k], a_r2[k]), color(a_p0[k], a_p1[k], a_p2[k]),",
         f"                               a_v[k], {p['look.tip_blend']!r}, {p['look.tip_start']!r},"
         f" {p['look.tint_variation']!r}, a_t[k]);",
