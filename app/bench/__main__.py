@@ -48,9 +48,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 # Reports with their own command lines: `vfiber bench extremes ...`, `vfiber bench quality ...`,
-# `vfiber bench grooms-sheet ...`
+# `vfiber bench grooms-sheet ...`, `vfiber bench antialias ...`
 DELEGATED = {"extremes": "app.bench.extremes", "quality": "app.bench.quality",
-             "grooms-sheet": "app.bench.grooms"}
+             "grooms-sheet": "app.bench.grooms", "antialias": "app.bench.antialias"}
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,0 +1,398 @@
+"""``python -m app.bench.antialias [--quick] [--size WxH] [--out DIR]``: the measuring stick for thin fibers.
+
+Issue 16 asks for a filtered mode whose sub-pixel fibers hold still; this bench measures the antialias modes
+that exist today so that mode has something to beat. Per scene (the default preset, the fur-ball seen from
+a distance, sintel_hair.tfx) and per mode (none, supersample 2/3/4, MSAA 2/4, the viewer's accumulation):
+
+  stability  the share of covered pixels whose colour changes by more than 4/255 (any channel, 8-bit sRGB
+             levels) when the camera moves a tenth of a pixel: the renderer's ``offset=(0.1, 0)``, which shifts
+             every ray through the image plane by 0.1 px to the right (a screen-space pan, no parallax)
+  error      per pixel the largest channel difference, in sRGB levels, from a reference of 16 x 16 jittered
+             stratified rays per pixel (256 single-ray frames at sub-pixel offsets, averaged in linear light:
+             a box filter); mean and 99th percentile over the covered pixels
+  cost       time.process_time of a frame (colour read back) over that of mode none, the unfiltered exact
+             frame, all in one process (llvmpipe's threads belong to it, so load elsewhere hardly matters)
+
+Covered pixels: those where any of the reference's rays (unmoved or moved) meets a fiber.
+
+The viewer's accumulation is reproduced, not scripted: while the camera is still, the viewer renders one
+single-ray sample per UI frame at the offsets of ``app.viewer.display.supersample_offsets(n)`` (n =
+quality.supersample, at most 4, so at most 16 samples; with n = 1 it accumulates nothing) and shows the sum of
+the premultiplied sRGB samples divided by their count over the background (glsl/viewer/accumulate.frag,
+display.frag). Here the same offsets are rendered with the same Renderer and averaged the same way.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import platform
+import subprocess
+import time
+from dataclasses import dataclass
+from datetime import date
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+STABILITY_THRESHOLD = 4.0       # sRGB levels (of 255): the issue's "changes by more than 4/255"
+MOVE_PX = 0.1                   # the camera move, in pixels
+REFERENCE_N = 16                # reference rays per pixel: REFERENCE_N x REFERENCE_N
+GAMMA = 2.2                     # the renderer's display transform (glsl/shading/light.glsl): pow(c, 1/2.2)
+FAR_FUR_DISTANCE = 8.0          # fur-ball camera distance: its fibers ~0.3 px wide at 180 px high
+TARGET_STABILITY_PCT = 10.0     # issue 16's targets for the filtered mode
+TARGET_COST = 3.0
+
+# name -> (params overrides, viewer accumulation grid n or 0)
+MODES: dict[str, tuple[dict, int]] = {
+    "none": ({}, 0),
+    "supersample 2": ({"quality.supersample": 2}, 0),
+    "supersample 3": ({"quality.supersample": 3}, 0),
+    "supersample 4": ({"quality.supersample": 4}, 0),
+    "msaa 2": ({"quality.msaa": 2}, 0),
+    "msaa 4": ({"quality.msaa": 4}, 0),
+    "viewer accumulation 16": ({}, 4),
+}
+SCENES = ("default", "fur-ball far", "sintel_hair.tfx")
+
+
+# --- metrics (pure numpy: tests/bench/test_antialias_bench.py holds them to known answers) -------------------
+def to_linear(srgb_levels: np.ndarray) -> np.ndarray:
+    """8-bit display levels (0..255) to linear light (0..1), the inverse of the renderer's encode."""
+    return (np.clip(np.asarray(srgb_levels, np.float64), 0.0, 255.0) / 255.0) ** GAMMA
+
+
+def to_srgb_levels(linear: np.ndarray) -> np.ndarray:
+    """Linear light (0..1) to display levels (0..255, float: not rounded)."""
+    return np.clip(np.asarray(linear, np.float64), 0.0, 1.0) ** (1.0 / GAMMA) * 255.0
+
+
+def changed_share(a: np.ndarray, b: np.ndarray, covered: np.ndarray,
+                  threshold: float = STABILITY_THRESHOLD) -> float:
+    """Percentage of ``covered`` pixels where some channel of ``a`` and ``b`` (H, W, 3 levels) differs by
+    more than ``threshold`` levels. NaN when nothing is covered (a share of nothing is no figure)."""
+    covered = np.asarray(covered, bool)
+    if a.shape != b.shape or a.shape[:2] != covered.shape:
+        raise ValueError(f"changed_share: shapes differ: {a.shape}, {b.shape}, mask {covered.shape}")
+    n = int(covered.sum())
+    if n == 0:
+        return float("nan")
+    diff = np.abs(a.astype(np.float64) - b.astype(np.float64)).max(-1)
+    return 100.0 * float((diff > threshold)[covered].sum()) / n
+
+
+def error_stats(image: np.ndarray, ref: np.ndarray, covered: np.ndarray) -> tuple[float, float]:
+    """(mean, 99th percentile) over ``covered`` pixels of the largest channel difference in levels."""
+    covered = np.asarray(covered, bool)
+    if image.shape != ref.shape or image.shape[:2] != covered.shape:
+        raise ValueError(f"error_stats: shapes differ: {image.shape}, {ref.shape}, mask {covered.shape}")
+    if not covered.any():
+        return float("nan"), float("nan")
+    e = np.abs(image.astype(np.float64) - ref.astype(np.float64)).max(-1)[covered]
+    return float(e.mean()), float(np.percentile(e, 99))
+
+
+def reference_offsets(n: int = REFERENCE_N, seed: int = 16) -> list[tuple[float, float]]:
+    """n x n jittered stratified sub-pixel offsets about the pixel centre, one in each cell (seeded: the
+    moved reference reuses them, so its only change is the move). Jitter rather than cell centres: a regular
+    1/16 px grid beats against fibers thinner than its spacing."""
+    rng = np.random.default_rng(seed)
+    u = rng.random((n, n, 2))
+    return [((i + u[j, i, 0]) / n - 0.5, (j + u[j, i, 1]) / n - 0.5) for j in range(n) for i in range(n)]
+
+
+# --- rendering -------------------------------------------------------------------------------------------
+@dataclass
+class Subject:
+    name: str
+    p: object
+    cam: object
+    renderer: object
+    fiber_px: float           # fiber width in pixels at the scene centre's distance (what "thin" means)
+
+
+def load_subject(ctx, programs, name: str, size) -> Subject:
+    from ..params import Params
+    from ..presets import find_preset, resolve_params
+    from ..render.camera import Camera
+    from ..render.renderer import Renderer
+    from ..scene.generators import build_scene
+    from .grooms import HAIR_DATA
+
+    if name == "default":
+        p = find_preset("default").params
+    elif name == "fur-ball far":
+        p = find_preset("fur-ball").params.replace(**{"camera.distance": FAR_FUR_DISTANCE})
+    elif name.endswith(".tfx"):
+        path = HAIR_DATA / name
+        if not path.exists():
+            raise FileNotFoundError(f"{path}: shared hair data not found (tests and benches expect "
+                                    "../shared/hair-data beside the checkout)")
+        p, _ = resolve_params(str(path), [])
+    else:
+        raise ValueError(f"unknown antialias bench scene {name!r}: use one of {', '.join(SCENES)}")
+    assert isinstance(p, Params)
+    scene = build_scene(p)
+    cam = Camera.from_params(p, scene, aspect=size[0] / size[1])
+    r = Renderer(ctx, programs)
+    r.set_scene(scene)
+    radius = float(np.median(scene.segments[:, 3]))
+    dist = float(np.linalg.norm(np.asarray(cam.position, np.float64) - np.asarray(cam.target, np.float64)))
+    px = 2.0 * dist * np.tan(np.radians(cam.fov) / 2) / size[1]
+    return Subject(name, p, cam, r, 2.0 * radius * p["fibers.fiber_radius"] / px)
+
+
+def _mode_params(s: Subject, mode: str):
+    values, _ = MODES[mode]
+    # every mode starts from the unfiltered frame: a groom or preset that sets its own antialias is reset
+    return s.p.replace(**{"quality.supersample": 1, "quality.msaa": 0, **values})
+
+
+def render_mode(s: Subject, mode: str, size, offset=(0.0, 0.0)) -> np.ndarray:
+    """The picture a mode shows, in display levels (H, W, 3) float64. The viewer's accumulation is not
+    rounded to 8 bits until the screen, so it stays float here too; the others are the renderer's uint8."""
+    p = _mode_params(s, mode)
+    n = MODES[mode][1]
+    if n:
+        from ..viewer.display import supersample_offsets
+
+        frames = [s.renderer.render(p, s.cam, size, outputs=("color",),
+                                    offset=(offset[0] + ox, offset[1] + oy)).color.astype(np.float64)
+                  for ox, oy in supersample_offsets(n)]
+        return np.mean(frames, 0)
+    return s.renderer.render(p, s.cam, size, outputs=("color",), offset=offset).color.astype(np.float64)
+
+
+def render_reference(s: Subject, size, offset=(0.0, 0.0), n: int = REFERENCE_N) -> tuple[np.ndarray, np.ndarray]:
+    """(display levels (H, W, 3), coverage (H, W)) of n x n single-ray frames averaged in linear light."""
+    p = _mode_params(s, "none")
+    lin, cov = None, None
+    for ox, oy in reference_offsets(n):
+        f = s.renderer.render(p, s.cam, size, outputs=("color",), offset=(offset[0] + ox, offset[1] + oy))
+        l_ = to_linear(f.color)
+        lin = l_ if lin is None else lin + l_
+        cov = f.coverage.astype(np.float64) if cov is None else cov + f.coverage
+    k = n * n
+    return to_srgb_levels(lin / k), cov / k
+
+
+def cost_s(s: Subject, mode: str, size, reps: int) -> float:
+    """Median process_time seconds of one picture of ``mode`` (one warm-up first: compilation)."""
+    render_mode(s, mode, size)
+    samples = []
+    for _ in range(reps):
+        t = time.process_time()
+        render_mode(s, mode, size)
+        s.renderer.ctx.finish()
+        samples.append(time.process_time() - t)
+    return float(np.median(samples))
+
+
+def measure_scene(s: Subject, size, reps: int, ref_n: int = REFERENCE_N) -> tuple[list[dict], dict]:
+    """Rows for one scene and the pictures for its contact sheet."""
+    ctx = s.renderer.ctx
+    t0 = time.process_time()
+    ref, cov = render_reference(s, size, n=ref_n)
+    ref_s = time.process_time() - t0
+    ref_moved, cov_moved = render_reference(s, size, (MOVE_PX, 0.0), n=ref_n)
+    covered = (cov > 0) | (cov_moved > 0)
+    modes = [m for m in MODES if MODES[m][0].get("quality.msaa", 0) <= ctx.max_samples]
+    costs = {m: cost_s(s, m, size, reps) for m in modes}
+    rows, pictures = [], {"reference": ref, "reference moved": ref_moved}
+    for m in modes:
+        img, moved = render_mode(s, m, size), render_mode(s, m, size, (MOVE_PX, 0.0))
+        shown = np.round(img)       # what reaches the screen: 8-bit
+        mean, p99 = error_stats(shown, ref, covered)
+        rows.append({"scene": s.name, "mode": m,
+                     "stability_changed_pct": changed_share(shown, np.round(moved), covered),
+                     "error_mean_levels": mean, "error_p99_levels": p99,
+                     "cost_vs_none": costs[m] / costs["none"], "cpu_ms": 1000 * costs[m]})
+        pictures[m], pictures[m + " moved"] = shown, np.round(moved)
+    mean, p99 = error_stats(ref_moved, ref, covered)   # the box filter's own floor under the same move
+    rows.append({"scene": s.name, "mode": f"reference {ref_n}x{ref_n} (box)",
+                 "stability_changed_pct": changed_share(ref, ref_moved, covered),
+                 "error_mean_levels": 0.0, "error_p99_levels": 0.0,
+                 "cost_vs_none": ref_s / costs["none"], "cpu_ms": 1000 * ref_s})
+    for r in rows:
+        r["fiber_px"] = s.fiber_px
+        r["covered_px"] = int(covered.sum())
+    pictures["_covered"] = covered
+    return rows, pictures
+
+
+def best_mode(rows: list[dict]) -> str:
+    """The existing mode with the lowest stability figure (ties: the lower mean error)."""
+    cands = [r for r in rows if not r["mode"].startswith("reference") and r["mode"] != "none"]
+    return min(cands, key=lambda r: (r["stability_changed_pct"], r["error_mean_levels"]))["mode"]
+
+
+# --- pictures --------------------------------------------------------------------------------------------
+def _crop_box(covered: np.ndarray, cw: int, ch: int) -> tuple[int, int]:
+    """Top-left (y, x) of the cw x ch window holding the most covered pixels (a coarse search)."""
+    h, w = covered.shape
+    c = np.pad(covered.astype(np.int64).cumsum(0).cumsum(1), ((1, 0), (1, 0)))
+    best, at = -1, (0, 0)
+    for y in range(0, max(1, h - ch + 1), max(1, ch // 4)):
+        for x in range(0, max(1, w - cw + 1), max(1, cw // 4)):
+            n = c[y + ch, x + cw] - c[y, x + cw] - c[y + ch, x] + c[y, x]
+            if n > best:
+                best, at = n, (y, x)
+    return at
+
+
+def contact_sheet(per_scene: list[tuple[str, dict, str]], path: Path, zoom: int = 4) -> None:
+    """Rows: scenes. Columns: reference | none | best mode | the viewer's accumulation where its picture is
+    not the best mode's | change after the 0.1 px move (x4) of none and of the best mode; crops of the most
+    covered part, enlarged ``zoom`` x by nearest neighbour."""
+    from PIL import ImageDraw
+
+    tiles = []
+    for name, pics, best in per_scene:
+        covered = pics["_covered"]
+        h, w = covered.shape
+        ch, cw = max(8, h // 3), max(8, w // 3)
+        y, x = _crop_box(covered, cw, ch)
+        crop = lambda a: a[y:y + ch, x:x + cw]   # noqa: E731
+
+        def diff(m):
+            d = np.abs(pics[m] - pics[m + " moved"]).max(-1, keepdims=True) * 4
+            return np.repeat(np.clip(d, 0, 255), 3, -1)
+
+        cols = [("reference", crop(pics["reference"])), ("none", crop(pics["none"])), (best, crop(pics[best]))]
+        acc = "viewer accumulation 16"
+        if acc in pics and np.abs(pics[acc] - pics[best]).max() > 1.0:   # the proxies' supersampling differs
+            cols.append((acc, crop(pics[acc])))
+        cols += [("none: change x4", crop(diff("none"))), (f"{best}: change x4", crop(diff(best)))]
+        row = []
+        for label, a in cols:
+            im = Image.fromarray(np.clip(np.round(a), 0, 255).astype(np.uint8)).resize((cw * zoom, ch * zoom),
+                                                                                        Image.NEAREST)
+            ImageDraw.Draw(im).text((4, 2), f"{name}: {label}", fill=(255, 255, 0))
+            row.append(np.asarray(im))
+            row.append(np.full((ch * zoom, 4, 3), 255, np.uint8))
+        tiles.append(np.concatenate(row[:-1], 1))
+    width = max(t.shape[1] for t in tiles)
+    tiles = [np.pad(t, ((0, 4), (0, width - t.shape[1]), (0, 0)), constant_values=255) for t in tiles]
+    Image.fromarray(np.concatenate(tiles, 0)).save(path)
+
+
+def plot(rows: list[dict], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    scenes = list(dict.fromkeys(r["scene"] for r in rows))
+    fig, axes = plt.subplots(1, len(scenes), figsize=(5 * len(scenes), 4), squeeze=False)
+    for ax, sc in zip(axes[0], scenes):
+        rs = [r for r in rows if r["scene"] == sc and not r["mode"].startswith("reference")]
+        ax.scatter([r["cost_vs_none"] for r in rs], [r["stability_changed_pct"] for r in rs])
+        for r in rs:
+            ax.annotate(r["mode"], (r["cost_vs_none"], r["stability_changed_pct"]), fontsize=7)
+        ref = next(r for r in rows if r["scene"] == sc and r["mode"].startswith("reference"))
+        ax.axhline(ref["stability_changed_pct"], color="grey", ls=":", label="box reference under the move")
+        ax.axhline(TARGET_STABILITY_PCT, color="green", ls="--", label="target <= 10%")
+        ax.axvline(TARGET_COST, color="red", ls="--", label="target cost <= 3x")
+        ax.set_xscale("log")
+        ax.set_xlabel("cost / none (process_time)")
+        ax.set_ylabel("covered pixels changed > 4/255 by a 0.1 px move (%)")
+        ax.set_title(f"{sc} (fibers {ref['fiber_px']:.2f} px)")
+        ax.set_ylim(0, 100)
+    axes[0][0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+# --- report ----------------------------------------------------------------------------------------------
+COLUMNS = ["scene", "mode", "stability_changed_pct", "error_mean_levels", "error_p99_levels", "cost_vs_none",
+           "cpu_ms", "fiber_px", "covered_px"]
+
+
+def write_outputs(rows: list[dict], per_scene, out: Path, header: str) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / "antialias.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, COLUMNS)
+        w.writeheader()
+        w.writerows({k: r[k] for k in COLUMNS} for r in rows)
+    fmt = lambda v: f"{v:.3g}" if isinstance(v, float) else str(v)  # noqa: E731
+    lines = ["# Thin fibers: the measuring stick (issue 16)", "", header, "",
+             f"Targets for the filtered mode: stability <= {TARGET_STABILITY_PCT:g}% of covered pixels changed, "
+             f"cost <= {TARGET_COST:g}x none. The reference row's stability is what a perfect box filter "
+             "itself does under the move.", "",
+             "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
+    lines += ["| " + " | ".join(fmt(r[k]) for k in COLUMNS) + " |" for r in rows]
+    lines += ["", "Best existing mode per scene (lowest stability figure): "
+              + ", ".join(f"{n}: {b}" for n, _, b in per_scene) + ".",
+              "", "![stability against cost](antialias.png)", "",
+              "![contact sheet: reference | none | best | change after the move x4](contact_sheet.png)", ""]
+    (out / "README.md").write_text("\n".join(lines))
+    plot(rows, out / "antialias.png")
+    contact_sheet(per_scene, out / "contact_sheet.png")
+
+
+def run(size=(320, 180), reps: int = 5, scenes=SCENES, ref_n: int = REFERENCE_N, out: Path | None = None,
+        command: str = "python -m app.bench.antialias") -> list[dict]:
+    from ..gl.context import create_headless
+    from ..gl.shaders import ProgramCache
+
+    hc = create_headless()
+    try:
+        programs = ProgramCache()
+        rows, per_scene = [], []
+        for name in scenes:
+            s = load_subject(hc.ctx, programs, name, size)
+            t = time.perf_counter()
+            r, pics = measure_scene(s, size, reps, ref_n)
+            print(f"{name}: {time.perf_counter() - t:.0f} s", flush=True)
+            rows += r
+            per_scene.append((name, pics, best_mode(r)))
+            s.renderer.release_targets()
+        if out is not None:
+            header = (f"Date {date.today()}, commit {_commit()}, `{command}`. Machine: "
+                      f"{platform.processor() or platform.machine()}, {hc.renderer}, {hc.version}. Image "
+                      f"{size[0]}x{size[1]}; move {MOVE_PX} px to the right (``offset``); reference "
+                      f"{ref_n}x{ref_n} jittered stratified single-ray frames averaged in linear light (gamma "
+                      f"{GAMMA}); cost: median process_time of {reps} pictures (colour read back) over none's.")
+            write_outputs(rows, per_scene, out, header)
+        return rows
+    finally:
+        hc.release()
+
+
+def _commit() -> str:
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                              check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def _size(text: str) -> tuple[int, int]:
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"--size {text!r}: expected WxH, e.g. 320x180") from None
+    if w < 8 or h < 8:
+        raise argparse.ArgumentTypeError(f"--size {text!r}: at least 8x8")
+    return w, h
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m app.bench.antialias", description=__doc__.split("\n")[0])
+    ap.add_argument("--quick", action="store_true", help="160x90, 8x8 reference, 2 timed pictures")
+    ap.add_argument("--size", type=_size, default=None, help="image size WxH (default 320x180)")
+    ap.add_argument("--scene", action="append", choices=SCENES, help="repeatable (default: all three)")
+    ap.add_argument("--out", type=Path, default=Path("docs/bench/antialias"))
+    args = ap.parse_args(argv)
+    size = args.size or ((160, 90) if args.quick else (320, 180))
+    command = "python -m app.bench.antialias" + (" " + " ".join(argv) if argv else "")
+    run(size, reps=2 if args.quick else 5, scenes=args.scene or SCENES, ref_n=8 if args.quick else REFERENCE_N,
+        out=args.out, command=command)
+    print(f"wrote {args.out / 'README.md'}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
