@@ -94,6 +94,24 @@ def test_viewer_accumulation_is_the_walks_supersampling(ctx):
         s.renderer.release_targets()
 
 
+def test_the_move_is_in_pixels_and_pans_right(ctx):
+    """The bench's camera move is the renderer's offset in pixel units: an offset of one whole pixel must give
+    the same picture one column over (the content moves left as the camera pans right), so 0.1 is a tenth."""
+    from app.gl.shaders import ProgramCache
+
+    size = (64, 36)
+    s = aa.load_subject(ctx, ProgramCache(), "default", size)
+    try:
+        a = aa.render_mode(s, "none", size)
+        b = aa.render_mode(s, "none", size, (1.0, 0.0))
+        assert np.abs(b - a).max() > 20.0
+        assert np.array_equal(b[:, :-1], a[:, 1:])
+        tenth = aa.render_mode(s, "none", size, (aa.MOVE_PX, 0.0))
+        assert 0.0 < aa.changed_share(a, tenth, np.ones(size[::-1], bool)) < 100.0
+    finally:
+        s.renderer.release_targets()
+
+
 def test_tiny_run_writes_every_output(tmp_path):
     rows = aa.run(size=(32, 18), reps=1, scenes=("default",), ref_n=2, out=tmp_path)
     modes = [r["mode"] for r in rows]
