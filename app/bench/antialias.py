@@ -242,8 +242,9 @@ def _crop_box(covered: np.ndarray, cw: int, ch: int) -> tuple[int, int]:
 
 
 def contact_sheet(per_scene: list[tuple[str, dict, str]], path: Path, zoom: int = 4) -> None:
-    """Rows: scenes. Columns: reference | none | best mode | the viewer's accumulation | change after the 0.1 px move (x4) of none and of the best mode; crops of the most
-    covered part, enlarged ``zoom`` x by nearest neighbour."""
+    """Rows: scenes. Columns: reference | none | best mode | the viewer's accumulation | change after the
+    0.1 px move (x4) of none and of the best mode; crops of the most covered part, enlarged ``zoom`` x by
+    nearest neighbour."""
     from PIL import ImageDraw
 
     tiles = []
@@ -326,7 +327,8 @@ def write_outputs(rows: list[dict], per_scene, out: Path, header: str) -> None:
     lines += ["", "Best existing mode per scene (lowest stability figure): "
               + ", ".join(f"{n}: {b}" for n, _, b in per_scene) + ".",
               "", "![stability against cost](antialias.png)", "",
-              "![contact sheet: reference | none | best | viewer accumulation | change after the move x4: none, best](contact_sheet.png)", ""]
+              "![contact sheet: reference | none | best | viewer accumulation | change after the move x4: "
+              "none, best](contact_sheet.png)", ""]
     (out / "README.md").write_text("\n".join(lines))
     plot(rows, out / "antialias.png")
     contact_sheet(per_scene, out / "contact_sheet.png")
