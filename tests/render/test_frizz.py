@@ -13,6 +13,7 @@ import pytest
 from app import fibers
 from app.params import Params
 from app.render import explicit, renderer as R
+from tests.export.test_osl_export import blender_test, cycles, gl_vs_cycles  # noqa: F401 (fixture)
 from tests.support.ids import gpu_ids, reference_ids, setup
 
 SIZE = (128, 96)
@@ -145,3 +146,39 @@ def test_the_explicit_baseline_says_it_leaves_frizz_out():
     assert explicit.ignored_shape(Params({"shape.frizz": 0.5, "shape.noise": 0.2})) == ("shape.frizz",
                                                                                        "shape.noise")
     assert explicit.ignored_shape(Params({})) == ()
+
+
+@blender_test
+def test_frizz_fiber_ids_match_in_cycles(cycles, renderer, tmp_path):
+    """The OSL twin: the exported shader sees the same frizzed fiber as the preview in each pixel."""
+    p = Params({"scene.generator": "single", "scene.radius": 0.3, "scene.length": 1.0, "fibers.rings": 5,
+                "fibers.phi_step": 9.0, "fibers.fiber_radius": 0.05, "shape.curl_amplitude": 0.3,
+                "shape.curl_frequency": 3.0, "shape.twist": 0.5, "shape.frizz": 0.8, "shape.noise": 0.6,
+                "camera.elevation": 25.0})
+    r = gl_vs_cycles(cycles, renderer, p, tmp_path, "frizz_ids", debug_view=1)
+    both = r["gl"] & r["cycles"]
+    rgb = np.round(r["res"]["rgba"][..., :3]).astype(np.int64)
+    same = (rgb[..., 0] == r["ids"][..., 1]) & (rgb[..., 1] == r["ids"][..., 2]) & (rgb[..., 2] == r["ids"][..., 0])
+    print(f"frizz: fiber ids agree on {same[both].mean():.4%} of {both.sum()} pixels both cover")
+    assert both.sum() > 3000 and r["agree"] >= 0.995
+    assert same[both].mean() >= 0.995
+
+
+def test_frizz_comes_from_presets_set_and_the_osl_export(tmp_path):
+    from app.cli import resolve_params
+    from app.export import osl as X
+    from app.presets import loads_preset
+    from tests.support.paths import ROOT
+
+    pre = loads_preset('version = 2\nname = "frizzy"\n[shape]\nfrizz = 0.7\nnoise = 0.3\nnoise_frequency = 20.0\n',
+                       "frizzy.toml")
+    p = getattr(pre, "params", pre)
+    assert (p["shape.frizz"], p["shape.noise"], p["shape.noise_frequency"]) == (0.7, 0.3, 20.0)
+    q, _ = resolve_params(str(ROOT / "presets" / "curly-1.toml"), ["shape.frizz=0.4", "shape.noise=1"])
+    assert q["shape.frizz"] == 0.4 and q["shape.noise"] == 1.0
+    for bad in ({"shape.frizz": 1.5}, {"shape.noise": -0.1}, {"shape.noise_frequency": 65.0}):
+        with pytest.raises(Exception, match=next(iter(bad))):
+            Params(bad)
+    text = X.export_osl(q, tmp_path / "frizzy.osl", "frizzy").read_text()
+    assert "float shape_frizz = 0.4" in text and "float shape_noise = 1" in text
+    assert "#define VF_CH_FRIZZ_AMP 7" in text and "#define VF_DISPLACEMENT_LIMIT 0.5" in text
