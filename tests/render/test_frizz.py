@@ -123,7 +123,7 @@ def test_frizz_exact_equals_brute(renderer, name):
         assert exact.hit.sum() > (50 if name in EXTREMES else 200), (name, elevation)
         differ = np.any(exact.ids[..., :3] != brute.ids[..., :3], -1).sum()
         assert differ == 0, f"{name} at {elevation}: {differ} pixels differ"
-        assert exact.cost[..., 3].max() < 65_535
+        assert exact.cost[..., 3].max() < 65_535 and exact.unfinished == 0 and brute.unfinished == 0
         assert np.isfinite(exact.color).all()
 
 
