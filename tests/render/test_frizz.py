@@ -13,7 +13,7 @@ import pytest
 from app import fibers
 from app.params import Params
 from app.render import explicit, renderer as R
-from tests.export.test_osl_export import blender_test, cycles, gl_vs_cycles  # noqa: F401 (fixture)
+from tests.export.test_osl_export import blender_test, gl_vs_cycles
 from tests.support.ids import gpu_ids, reference_ids, setup
 
 SIZE = (128, 96)
@@ -129,7 +129,7 @@ def test_frizz_exact_equals_brute(renderer, name):
 
 def test_frizz_glsl_matches_float64_reference(renderer):
     agree = total = 0
-    for name, values in {**LOOKS, "frizz-max-curl-max": EXTREMES["frizz-max-curl-max"]}.items():
+    for values in [*LOOKS.values(), EXTREMES["frizz-max-curl-max"]]:
         p, scene, cam = setup(renderer, values, {"elevation": 25.0})
         size = (96, 72)
         got = gpu_ids(renderer.render(p, cam, size, outputs=("ids",), mode="exact"))
@@ -141,21 +141,58 @@ def test_frizz_glsl_matches_float64_reference(renderer):
     assert agree / total >= 0.999, f"{total - agree} of {total} hit pixels disagree with float64"
 
 
-def test_the_explicit_baseline_says_it_leaves_frizz_out():
+def test_the_explicit_baseline_says_it_leaves_frizz_out(ctx):
     # the baseline stores straight fibers (as for the curl, twist and ellipsoid): a comparison must say so
-    assert explicit.ignored_shape(Params({"shape.frizz": 0.5, "shape.noise": 0.2})) == ("shape.frizz",
-                                                                                       "shape.noise")
+    from app.render.camera import Camera
+    from app.scene.generators import build_scene
+
+    p = Params({"scene.count": 3, "fibers.phi_step": 6.0, "shape.frizz": 0.5, "shape.noise": 0.2})
+    assert explicit.ignored_shape(p) == ("shape.frizz", "shape.noise")
     assert explicit.ignored_shape(Params({})) == ()
+    e = explicit.ExplicitRenderer(ctx)
+    try:
+        scene = build_scene(p)
+        e.set_scene(scene, p)
+        with pytest.warns(UserWarning, match="shape.frizz"):
+            e.render(p, Camera.from_params(p, scene), (32, 18), outputs=("ids",))
+    finally:
+        e.release()
+        e.release_targets()
+
+
+def test_frizz_moves_fibers_off_the_baselines_rest_lines_by_at_most_its_bound():
+    """The same fibers as the baseline's (frizz draws no placement channel), displaced within the bound:
+    the frizzed centre at any height is the rest centre plus at most frizz + noise amplitude."""
+    p = Params({"fibers.rings": 5, "fibers.phi_step": 8.0, "shape.frizz": 1.0, "shape.noise": 1.0})
+    lay, sh = fibers.ring_layout(p), fibers.Shape.from_params(p)
+    cx, cy, _, _, _ = explicit.fiber_centers(lay, np.array([7]))
+    ring, j, rx, ry, _ = fibers.all_fibers(lay, 7)
+    np.testing.assert_array_equal(cx[0], rx)
+    phase = fibers.fiber_randoms(lay, 7, ring, j, fibers.CH_CURL)
+    v = np.linspace(0, 1, 33)[:, None]
+    fx, fy = fibers.fiber_center_at(sh, rx[None], ry[None], v, ring[None], phase[None])
+    d = np.hypot(fx - rx[None], fy - ry[None])
+    assert d.max() <= sh.displacement * (1 + 1e-9) and d.max() > 0.5 * sh.displacement
+
+
+@pytest.fixture(scope="module")
+def blender():
+    from app.export import blender as B
+
+    ok, why = B.blender_available()
+    if not ok:
+        pytest.skip(f"Blender harness unavailable: {why}")
+    return B
 
 
 @blender_test
-def test_frizz_fiber_ids_match_in_cycles(cycles, renderer, tmp_path):
+def test_frizz_fiber_ids_match_in_cycles(blender, renderer, tmp_path):
     """The OSL twin: the exported shader sees the same frizzed fiber as the preview in each pixel."""
     p = Params({"scene.generator": "single", "scene.radius": 0.3, "scene.length": 1.0, "fibers.rings": 5,
                 "fibers.phi_step": 9.0, "fibers.fiber_radius": 0.05, "shape.curl_amplitude": 0.3,
                 "shape.curl_frequency": 3.0, "shape.twist": 0.5, "shape.frizz": 0.8, "shape.noise": 0.6,
                 "camera.elevation": 25.0})
-    r = gl_vs_cycles(cycles, renderer, p, tmp_path, "frizz_ids", debug_view=1)
+    r = gl_vs_cycles(blender, renderer, p, tmp_path, "frizz_ids", debug_view=1)
     both = r["gl"] & r["cycles"]
     rgb = np.round(r["res"]["rgba"][..., :3]).astype(np.int64)
     same = (rgb[..., 0] == r["ids"][..., 1]) & (rgb[..., 1] == r["ids"][..., 2]) & (rgb[..., 2] == r["ids"][..., 0])
