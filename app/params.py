@@ -168,6 +168,11 @@ SPEC: tuple[Param, ...] = (
     P("shape.curl_frequency", float, 4.0, "curl turns per container length", 0.0, 64.0, "turns"),
     P("shape.curl_pattern", str, "helix", "helix: fibers wind round their rest line; wave: they sway in "
       "one plane", choices=("helix", "wave")),
+    P("shape.frizz", float, 0.0, "frizz: each fiber sways its own way, by its own amount (up to half a ring "
+      "width) and at its own pace (the curl's, up to half again faster or slower)", 0.0, 1.0),
+    P("shape.noise", float, 0.0, "fine wiggle on every fiber, up to a tenth of a ring width, across the "
+      "frizz's sway", 0.0, 1.0),
+    P("shape.noise_frequency", float, 16.0, "fine wiggles per container length", 0.0, 64.0, "turns"),
     P("shape.twist", float, 0.0, "turns of the fiber pattern about the container axis per length",
       -8.0, 8.0, "turns"),
     P("shape.twist_pattern", str, "uniform", "uniform, ramped (grows toward the tip) or alternating "

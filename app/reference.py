@@ -358,17 +358,22 @@ def ring_frame_center(sh: Shape, rest_x, rest_y, curl_phase, P):
             ax, ay = np.where(off, -rest_y * inv, ct), np.where(off, rest_x * inv, -st)
             k = sh.curl_amplitude * np.sin(a)
             cx, cy = cx + k * ax, cy + k * ay
+    if sh.frizzed:                  # a fixed direction in this frame (shape.py: frizz_offset)
+        fx, fy = fibers.frizz_offset(sh, v, curl_phase)
+        cx, cy = cx + fx, cy + fy
     return cx, cy
 
 
 def chord_pieces(sh: Shape, lay: RingLayout, length, dv, sa, ring, e_lo: float):
     """Chord pieces for an arc of length ``length`` that climbs ``dv`` (curved.glsl: chord_pieces)."""
     rho = lay.rho[ring] + lay.max_dr[ring]
-    r = rho + lay.fiber_radius + sh.curl_amplitude
+    r = rho + lay.fiber_radius + sh.displacement
     rate = 2 * math.pi * abs(sh.twist) * (2.0 if sh.twist_pattern == fibers.TWIST_RAMPED else 1.0)
     rate2 = 2.0 * 2 * math.pi * abs(sh.twist) if sh.twist_pattern == fibers.TWIST_RAMPED else 0.0
     f = 2 * math.pi * sh.curl_frequency
     curl = sh.curl_amplitude * ((f + rate) ** 2 + rate2 if sh.curl_pattern == fibers.CURL_HELIX else f * f)
+    fz, fn = 2 * math.pi * sh.frizz_frequency_max, 2 * math.pi * sh.noise_frequency
+    curl = curl + sh.frizz_amplitude * fz * fz + sh.noise_amplitude * fn * fn    # fixed directions: as the wave
     ell = rho * 4.0 * sh.ellipsoid ** 2 / np.maximum(e_lo, 0.25) ** 3
     bend_v = r * (rate * rate + rate2) + ell + curl
     bend_l = dv * dv * bend_v + 2.0 * rate * dv * length * sa
@@ -433,7 +438,7 @@ def shaped_nearest_segment(sh: Shape, lay: RingLayout, seg: Segment, ur: UnitRay
         s_mid = np.where(a2 > 0, -(o2 * d2).sum(1) / a2, s0)
     once_seen = np.zeros(n_rays, bool)
     stopped = np.zeros(n_rays, bool)
-    grow = lay.fiber_radius + sh.curl_amplitude + 1e-6
+    grow = lay.fiber_radius + sh.displacement + 1e-6
     for i in range(lay.rings):
         inner_r = max(0.0, e_lo * (lay.rho[i] - lay.max_dr[i]) - grow)
         outer_r = e_hi * (lay.rho[i] + lay.max_dr[i]) + grow

@@ -11,12 +11,17 @@ from __future__ import annotations
 
 from .hash import CHANNELS
 from .limits import MAX_RINGS, MAX_SUB
-from .shape import CURL_PATTERNS, TWIST_PATTERNS
+from .shape import CURL_PATTERNS, DISPLACEMENT_LIMIT, FRIZZ_WIDTH, NOISE_WIDTH, TWIST_PATTERNS
 
 
 def _codes() -> dict[str, int]:
     return {**{f"TWIST_{k.upper()}": v for k, v in TWIST_PATTERNS.items()},
             **{f"CURL_{k.upper()}": v for k, v in CURL_PATTERNS.items()}}
+
+
+def _osl_shape() -> dict[str, float]:
+    """The displacement limits osl/stages/container.osl scales by (the GL's uniforms come scaled)."""
+    return {"FRIZZ_WIDTH": FRIZZ_WIDTH, "NOISE_WIDTH": NOISE_WIDTH, "DISPLACEMENT_LIMIT": DISPLACEMENT_LIMIT}
 
 
 def glsl_defines() -> dict[str, int | str]:
@@ -25,10 +30,11 @@ def glsl_defines() -> dict[str, int | str]:
     return {"MAX_RINGS": MAX_RINGS, "MAX_SUB": MAX_SUB, **{k: f"{v}u" for k, v in CHANNELS.items()}, **_codes()}
 
 
-def osl_defines() -> dict[str, int]:
-    """The same for OSL, prefixed ``VF_`` (OSL has no namespaces and no uint: channels are ints)."""
+def osl_defines() -> dict[str, int | float]:
+    """The same for OSL, prefixed ``VF_`` (OSL has no namespaces and no uint: channels are ints), and the
+    displacement limits (floats) that the OSL's container stage scales the curl, frizz and noise by."""
     return {f"VF_{k}": v for k, v in {"MAX_RINGS": MAX_RINGS, "MAX_SUB": MAX_SUB, **CHANNELS,
-                                      **_codes()}.items()}
+                                      **_codes(), **_osl_shape()}.items()}
 
 
 def osl_header() -> str:

@@ -11,9 +11,13 @@ import numpy as np
 
 #: random-number channels: one independent number per purpose and fiber (injected into GLSL as CH_*,
 #: into OSL as VF_CH_*); CH_RING draws each ring's rotation, on the CPU and in the OSL export
+#: the CH_FRIZZ_* and CH_NOISE_PHASE channels are drawn from the fiber's curl phase (``wiggle_key``), not
+#: from its fiber key, so every twin that holds the phase holds the frizz too (app/fibers/shape.py)
 CHANNELS = {"CH_RADIAL": 0, "CH_ANGULAR": 1, "CH_LENGTH": 2, "CH_TINT": 3, "CH_ROUGH": 4, "CH_CURL": 5,
-            "CH_RING": 6}
-CH_RADIAL, CH_ANGULAR, CH_LENGTH, CH_TINT, CH_ROUGH, CH_CURL, CH_RING = CHANNELS.values()
+            "CH_RING": 6, "CH_FRIZZ_AMP": 7, "CH_FRIZZ_FREQ": 8, "CH_FRIZZ_DIR": 9, "CH_FRIZZ_PHASE": 10,
+            "CH_NOISE_PHASE": 11}
+(CH_RADIAL, CH_ANGULAR, CH_LENGTH, CH_TINT, CH_ROUGH, CH_CURL, CH_RING, CH_FRIZZ_AMP, CH_FRIZZ_FREQ,
+ CH_FRIZZ_DIR, CH_FRIZZ_PHASE, CH_NOISE_PHASE) = CHANNELS.values()
 SEED_OFFSET = 0x9E3779B9   # the golden-ratio constant added to the seed before the first round
 THESIS_LCG = 1207.523      # thesis expression 3.4
 
@@ -63,6 +67,13 @@ def fiber_hash(seed, guide, ring, fiber, channel) -> np.ndarray:
 def fiber_random(seed, guide, ring, fiber, channel) -> np.ndarray:
     """Uniform in [0, 1) per (seed, guide, ring, fiber, channel)."""
     return (fiber_hash(seed, guide, ring, fiber, channel) >> np.uint32(8)).astype(np.float64) / 16777216.0
+
+
+def wiggle_key(curl_phase) -> np.ndarray:
+    """The key of a fiber's frizz and noise numbers: its curl phase's bits. The phase is k / 2^24 for the
+    integer hash and a float32 for the thesis's, so phase * 2^24 is exact in float32 and truncates alike
+    in numpy, GLSL and OSL; the phase's 24 bits stand for the fiber as well as its key would."""
+    return (np.asarray(curl_phase, np.float64) * 16777216.0).astype(np.uint32)
 
 
 def thesis_random(slot_deg, ring, channel, dtype=np.float32):

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..fibers import MAX_SUB, ring_layout
+from ..fibers import FRIZZ_WIDTH, MAX_SUB, NOISE_WIDTH, Shape, displacement_scale, ring_layout
 from ..params import Params
 
 SLOW_SECONDS = 60.0          # above this the command line asks for --allow-slow
@@ -153,7 +153,10 @@ def _fragments(p: Params, scene, size: tuple[int, int]) -> float:
 
 def _tests_per_ray(p: Params, scene, mode: str) -> tuple[float, int]:
     lay = ring_layout(p)
-    shaped = p["shape.ellipsoid"] > 0 or p["shape.curl_amplitude"] > 0 or p["shape.twist"] != 0
+    shaped = Shape.from_params(p).curved
+    # the curl's, frizz's and noise's reach together, in ring widths as the curl's was (shape.py)
+    c, z, n = p["shape.curl_amplitude"], p["shape.frizz"], p["shape.noise"]
+    moved = (c + FRIZZ_WIDTH * z + NOISE_WIDTH * n) * displacement_scale(c, z, n)
     passes = CURVED_TEST_PASSES if shaped else 1
     if mode == "brute":
         return float(lay.fibers_per_container) * (2 if shaped else 1), passes
@@ -169,10 +172,10 @@ def _tests_per_ray(p: Params, scene, mode: str) -> tuple[float, int]:
     window = sweep + 2.0 * lay.reach
     reach = np.full(k, lay.fiber_radius)
     if shaped:
-        curl = p["shape.curl_amplitude"] + lay.fiber_radius
+        curl = moved + lay.fiber_radius
         disc = np.where(rho > curl, np.arcsin(np.minimum(1.0, curl / rho)), math.pi)
         window = window + 2.0 * disc
-        reach = reach + p["shape.curl_amplitude"]
+        reach = reach + moved
         if p["shape.twist"]:
             per_segment = 1.0 / max(1, _segments_per_guide(scene))
             # a piece spans a short stretch of the axis: it sees a small part of the segment's twist

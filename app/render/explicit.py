@@ -64,7 +64,7 @@ GEOMETRY_KEYS = ("fibers.rings", "fibers.phi_step", "fibers.phi_increment", "fib
                  "fibers.seed")
 # Shape parameters that bend fibers inside a container. The baseline draws straight fibers (so does the
 # virtual shader today); ``ignored_shape`` names those set, so a comparison can say what it left out.
-SHAPE_KEYS = ("shape.ellipsoid", "shape.curl_amplitude", "shape.twist")
+SHAPE_KEYS = ("shape.ellipsoid", "shape.curl_amplitude", "shape.twist", "shape.frizz", "shape.noise")
 
 
 class ExplicitBudgetError(VfiberError, MemoryError):

@@ -234,6 +234,7 @@ class Renderer:
 
     def _set_uniforms(self, prog: moderngl.Program, p: Params, cam: Camera, size, offset) -> None:
         lay = fibers.ring_layout(p)
+        sh = fibers.Shape.from_params(p)
         K = lay.rings
         w, h = size
         right, up, forward = cam.basis()
@@ -254,9 +255,11 @@ class Renderer:
             "uShadowDensity": p["look.shadow_density"],
             "uEllipsoid": p["shape.ellipsoid"], "uTwist": p["shape.twist"],
             "uTwistPattern": TWIST_PATTERNS[p["shape.twist_pattern"]],
-            "uCurlAmplitude": p["shape.curl_amplitude"] / K, "uCurlFrequency": p["shape.curl_frequency"],
+            "uCurlAmplitude": sh.curl_amplitude, "uCurlFrequency": p["shape.curl_frequency"],
             "uCurlPattern": CURL_PATTERNS[p["shape.curl_pattern"]],
             "uTipWidth": p["strand.tip_width"], "uTaperStart": p["strand.taper_start"],
+            "uFrizz": sh.frizz, "uFrizzAmplitude": sh.frizz_amplitude, "uNoiseAmplitude": sh.noise_amplitude,
+            "uNoiseFrequency": sh.noise_frequency,
         }
         for name, value in values.items():
             if name in prog:
@@ -659,7 +662,7 @@ def _shaped_arc_passes(p: Params, scene: Scene) -> np.ndarray:
     v_lo = seg[:, 11] + (seg[:, 15] - seg[:, 11]) * z_lo / h   # the guide parameter over the slab
     v_hi = seg[:, 11] + (seg[:, 15] - seg[:, 11]) * z_hi / h
     e_lo = float(np.min(np.minimum(fibers.shape_scale(sh, v_lo), fibers.shape_scale(sh, v_hi))))
-    grow = lay.fiber_radius + sh.curl_amplitude + 1e-6      # shaped.glsl: ring_band
+    grow = lay.fiber_radius + sh.displacement + 1e-6      # shaped.glsl: ring_band
     inner = np.maximum(0.0, e_lo * (lay.rho - lay.max_dr) - grow)
     outer = (lay.rho + lay.max_dr) + grow                   # e_hi <= 1
     closest = np.minimum.accumulate(inner)              # no ring deeper than the ray's closest approach
@@ -667,11 +670,11 @@ def _shaped_arc_passes(p: Params, scene: Scene) -> np.ndarray:
     ramped = sh.twist_pattern == fibers.TWIST_RAMPED
     dv = np.abs(v_hi - v_lo) * (2.0 * np.maximum(np.abs(v_lo), np.abs(v_hi)) if ramped else 1.0)
     twist = 2.0 * math.pi * abs(sh.twist) * float(dv.max()) * 1.001
-    r_chord = lay.rho + lay.max_dr + lay.fiber_radius + sh.curl_amplitude   # curved.glsl: chord_pieces
+    r_chord = lay.rho + lay.max_dr + lay.fiber_radius + sh.displacement   # curved.glsl: chord_pieces
     piece_turn = np.minimum(twist, np.maximum(np.sqrt(0.8 * max(lay.fiber_radius, 1e-30) / r_chord) * 1.001,
                                               twist / MAX_SUB))
     d_min = e_lo * (lay.rho - lay.max_dr)           # shaped.glsl: shaped_reach
-    r = lay.fiber_radius + sh.curl_amplitude
+    r = lay.fiber_radius + sh.displacement
     with np.errstate(divide="ignore", invalid="ignore"):
         disc = np.where(d_min > r, np.arcsin(np.minimum(1.0, r / d_min)), math.pi)
     reach = lay.max_dphi + disc + EPS_ANGLE
@@ -767,7 +770,7 @@ def model_defines(p: Params, mode: str, cost: bool) -> dict[str, int]:
     """The defines of the fiber model and the traversal, the same for either visibility strategy."""
     return {**fibers.glsl_defines(), "TRAVERSAL": MODES[mode],
             "HASH_THESIS": int(p["fibers.hash"] == "thesis"), "COST_PASS": int(cost),
-            "SHAPED": int(is_shaped(p)), "SHAPE_CURL": shape_curl_define(p),
+            "SHAPED": int(is_shaped(p)), "SHAPE_CURL": shape_curl_define(p), "SHAPE_FRIZZ": int(is_frizzed(p)),
             "SHAPE_ELLIPSOID": int(p["shape.ellipsoid"] > 0), "SHAPE_TWIST": int(p["shape.twist"] != 0),
             "SHADING_MODEL": SHADING_MODELS[p["look.model"]], "SHADOW_MODE": SHADOW_MODES[p["look.self_shadow"]],
             "TAPER": int(fibers.tapered(p))}       # glsl/fibers/taper.glsl: tip width 1 builds no cone
@@ -780,7 +783,12 @@ def shape_curl_define(p: Params) -> int:
 
 def is_shaped(p: Params) -> bool:
     """Curved fibers need the slower curved-fiber traversal; straight ones keep the fast path."""
-    return p["shape.ellipsoid"] > 0 or p["shape.curl_amplitude"] > 0 or p["shape.twist"] != 0
+    return p["shape.ellipsoid"] > 0 or p["shape.curl_amplitude"] > 0 or p["shape.twist"] != 0 or is_frizzed(p)
+
+
+def is_frizzed(p: Params) -> bool:
+    """Frizz or noise on: the shaped traversal builds in their displacement (shape.glsl: SHAPE_FRIZZ)."""
+    return p["shape.frizz"] > 0 or p["shape.noise"] > 0
 
 
 def clear_targets(fbo: moderngl.Framebuffer) -> None:

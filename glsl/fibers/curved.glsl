@@ -37,11 +37,15 @@
 // ellipsoid's bend (E >= max(eLo, 1/4), as the test has always assumed) and curl'' the curl's.
 int chord_pieces(float L, float dv, float sa, int ring, float eLo) {
     float rho = uRingA[ring].x + uRingB[ring].x;
-    float r = rho + uFiberRadius + uCurlAmplitude;
+    float r = rho + uFiberRadius + shape_displacement();
     float rate = TWO_PI * abs(uTwist) * (uTwistPattern == TWIST_RAMPED ? 2.0 : 1.0);
     float rate2 = uTwistPattern == TWIST_RAMPED ? 2.0 * TWO_PI * abs(uTwist) : 0.0;
     float f = TWO_PI * uCurlFrequency;
     float curl = uCurlAmplitude * (uCurlPattern == CURL_HELIX ? (f + rate) * (f + rate) + rate2 : f * f);
+    // frizz and noise sway along directions fixed in the ring's frame, as the wave: amplitude times the
+    // square of the fastest angular rate (the frizz's frequency strays up to half of frizz from the curl's)
+    float fz = TWO_PI * uCurlFrequency * (1.0 + 0.5 * uFrizz), fn = TWO_PI * uNoiseFrequency;
+    curl = curl + uFrizzAmplitude * fz * fz + uNoiseAmplitude * fn * fn;
     float ell = rho * 4.0 * uEllipsoid * uEllipsoid / (max(eLo, 0.25) * max(eLo, 0.25) * max(eLo, 0.25));
     float bendV = r * (rate * rate + rate2) + ell + curl;
     // L^2 |q''| without dividing by L
@@ -72,6 +76,12 @@ float piece_entry(Segment seg, FiberRay fr, RingPoint P0, RingPoint P1, float in
 #endif
     vec2 q0 = P0.p - ring_frame_center(rest, curl0, P0);
     vec2 q1 = P1.p - ring_frame_center(rest, curl1, P1);
+#if SHAPE_FRIZZ
+    // each fiber its own frequency: both ends take their own sine (no shared advance as for the curl)
+    Frizz fz = frizz_of(curlPhase);
+    q0 -= frizz_offset(fz, P0.v);
+    q1 -= frizz_offset(fz, P1.v);
+#endif
     vec2 dq = (q1 - q0) * invLen;
     vec2 e = circle_interval(q0, dq, vec2(0.0), uFiberRadius);
 #if TAPER

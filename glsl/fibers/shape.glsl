@@ -4,9 +4,12 @@
 //   float shape_scale(float v)               ellipsoid: radial scale of every ring at height v
 //   RingPoint ring_point(Segment seg, UnitRay ur, float s, int ring)   the ray at s, seen in the ring's frame
 //   vec2  ring_frame_center(vec2 rest, CurlTurn curl, RingPoint P)      a fiber's centre in that frame
+//   Frizz frizz_of(float curlPhase); vec2 frizz_offset(Frizz f, float v)  frizz and noise, ring's frame
+//   float shape_displacement()               the most the curl, frizz and noise move a fiber together
 // v is the guide parameter (0 root .. 1 tip). A fiber's centre at height v is its rest position scaled by
-// the ellipsoid, rotated by the twist, plus the curl offset:
-//   c(v) = E(v) R(tau(v)) rest + curl(v)
+// the ellipsoid, rotated by the twist, plus the curl offset and the frizz (frizz and noise), which sways
+// along a direction fixed in the ring's turning frame:
+//   c(v) = E(v) R(tau(v)) rest + curl(v) + R(tau(v)) frizz(v)
 // Ellipsoid: rings follow x^2 + y^2 = r^2 (1 - e^2 (2v - 1)^2): e = 0 is the cylinder (a degenerate
 // ellipsoid), e = 1 the ellipsoid inscribed in the guide's length.
 // Twist patterns: 0 uniform tau = 2 pi T v, 1 ramped tau = 2 pi T v^2, 2 alternating: the sign flips
@@ -15,10 +18,12 @@
 //   c'(v) = E(v) rest + R(-tau(v)) curl(v)
 // whose angle about the axis stays within the curl's reach of the rest angle: a twisted fiber is straight
 // in it, and the ray, whose distance to the axis the rotation keeps, is the curve that turns.
-// Twin: app/fibers/shape.py (fiber_center_at, shape_twist, shape_scale), app/reference.py (ring_point,
+// Twin: app/fibers/shape.py (fiber_center_at, shape_twist, shape_scale, frizz_randoms, frizz_offset,
+// Shape.displacement), app/reference.py (ring_point,
 // ring_frame_center). The pattern codes are app/fibers/shape.py's, injected (app.fibers.glsl_defines).
 
 #include "geometry/container.glsl"
+#include "common/hash.glsl"
 
 #ifndef FIBERS_SHAPE_GLSL
 #define FIBERS_SHAPE_GLSL
@@ -29,6 +34,10 @@ uniform int uTwistPattern;
 uniform float uCurlAmplitude;   // unit-space radius of the curl
 uniform float uCurlFrequency;   // turns over the guide
 uniform int uCurlPattern;
+uniform float uFrizz;           // shape.frizz: how far each fiber's sway frequency strays from the curl's
+uniform float uFrizzAmplitude;  // unit space: the most a fiber's frizz moves it
+uniform float uNoiseAmplitude;  // unit space
+uniform float uNoiseFrequency;  // turns over the guide
 
 const float TWO_PI = 6.28318530718;
 
@@ -41,6 +50,18 @@ const float TWO_PI = 6.28318530718;
 #ifndef CURL_HELIX
 #define CURL_HELIX 0
 #define CURL_WAVE 1
+#endif
+
+#ifndef CH_FRIZZ_AMP
+#define CH_FRIZZ_AMP 7u
+#define CH_FRIZZ_FREQ 8u
+#define CH_FRIZZ_DIR 9u
+#define CH_FRIZZ_PHASE 10u
+#define CH_NOISE_PHASE 11u
+#endif
+
+#ifndef SHAPE_FRIZZ
+#define SHAPE_FRIZZ 1   // 0: built for frizz and noise 0 (the traversal skips their displacement)
 #endif
 
 #ifndef SHAPE_TWIST
@@ -61,6 +82,37 @@ float shape_scale(float v) {
     return sqrt(max(0.0, 1.0 - x * x));
 }
 
+// The most a fiber's centre moves off its scaled, twisted rest line: the bands, the reach and the chord
+// rule take it (shaped.glsl, curved.glsl). Zeros when frizz and noise are off, so the curl's alone.
+float shape_displacement() {
+    return uCurlAmplitude + uFrizzAmplitude + uNoiseAmplitude;
+}
+
+// Frizz and noise: each fiber sways along its own direction (dir, fixed in the ring's frame, as the wave)
+// by amp sin(2 pi (freq v + phase)), freq the curl's times 1 + frizz (u - 1/2), and the noise sways across
+// it at uNoiseFrequency with its own phase. The numbers come from the curl phase's bits (app/fibers/hash.py:
+// wiggle_key), so whatever holds a fiber's curl phase holds its frizz.
+struct Frizz { vec2 dir; float amp; float freq; float phase; float noisePhase; };
+
+Frizz frizz_of(float curlPhase) {
+    uint key = uint(curlPhase * 16777216.0);
+    float theta = TWO_PI * key_random(key, CH_FRIZZ_DIR);
+    Frizz f;
+    f.dir = vec2(cos(theta), sin(theta));
+    f.amp = uFrizzAmplitude * key_random(key, CH_FRIZZ_AMP);
+    f.freq = uCurlFrequency * (1.0 + uFrizz * (key_random(key, CH_FRIZZ_FREQ) - 0.5));
+    f.phase = key_random(key, CH_FRIZZ_PHASE);
+    f.noisePhase = key_random(key, CH_NOISE_PHASE);
+    return f;
+}
+
+// The displacement at height v, in the ring's frame.
+vec2 frizz_offset(Frizz f, float v) {
+    float k = f.amp * sin(TWO_PI * (f.freq * v + f.phase));
+    float m = uNoiseAmplitude * sin(TWO_PI * (uNoiseFrequency * v + f.noisePhase));
+    return k * f.dir + m * vec2(-f.dir.y, f.dir.x);
+}
+
 vec2 fiber_center_at(vec2 rest, float v, int ring, float curlPhase) {
     float tau = shape_twist(v, ring);
     float ct = cos(tau), st = sin(tau);
@@ -74,6 +126,10 @@ vec2 fiber_center_at(vec2 rest, float v, int ring, float curlPhase) {
             vec2 along = len > 0.0 ? vec2(-c.y, c.x) / len : vec2(1.0, 0.0);
             c += uCurlAmplitude * sin(a) * along;
         }
+    }
+    if (uFrizzAmplitude > 0.0 || uNoiseAmplitude > 0.0) {
+        vec2 f = frizz_offset(frizz_of(curlPhase), v);
+        c += vec2(ct * f.x - st * f.y, st * f.x + ct * f.y);
     }
     return c;
 }

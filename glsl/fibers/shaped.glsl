@@ -1,7 +1,8 @@
 // shaped.glsl: the traversal for curved fibers (curl, twist, ellipsoid); traverse.glsl dispatches here.
 //   FiberHit traverse_shaped(Segment seg, UnitRay ur)
 // A ring's fibers no longer sit in its annulus at every height: the ellipsoid scales them by E(v) in
-// [eLo, eHi] over this segment and the curl moves them by up to its amplitude. So each ring gets a band
+// [eLo, eHi] over this segment and the curl, frizz and noise move them by up to shape_displacement(). So
+// each ring gets a band
 // [inner, outer] that holds its fibers at every height of the segment (bands of neighbouring rings may
 // overlap), and the ray's arcs through the bands are visited in order of where they start: the fronts of
 // the bands crossed twice (outer to inner), the first halves of the bands crossed once (split at the
@@ -12,7 +13,7 @@
 // untwisted ring. The arc is cut into chord pieces (curved.glsl: chord_pieces, as many as the ray's climb
 // and the shape's bend need); a piece is a straight stretch from the ray's point at its start to the one
 // at its end, which sweeps the angles between them as seen from the axis; only the fibers whose slot,
-// widened by the ring's reach (jitter, the curl amplitude and the fiber's disc), meets those angles are
+// widened by the ring's reach (jitter, the displacement and the fiber's disc), meets those angles are
 // tested on it. The twist never widens a window.
 // exact: a piece's candidates up to two reaches past its latest improvement are tested, and the pieces
 // (and arcs) stop once the next one starts beyond the nearest hit so far. fast: the first hit wins. brute: every fiber of the draw's share on every
@@ -55,19 +56,19 @@ Bands segment_bands(Segment seg) {
 
 vec2 ring_band(int i, Bands b) {
     float rho = uRingA[i].x, dr = uRingB[i].x;
-    float grow = uFiberRadius + uCurlAmplitude + EPS_BAND;
+    float grow = uFiberRadius + shape_displacement() + EPS_BAND;
     return vec2(max(0.0, b.eLo * (rho - dr) - grow), b.eHi * (rho + dr) + grow);
 }
 
 // Angular reach of ring i's fibers about their slots in the ring's frame: the jitter, then the disc of
-// radius r = fiber radius + curl amplitude about the scaled rest position Q, seen from the axis. A point
+// radius r = fiber radius + displacement about the scaled rest position Q, seen from the axis. A point
 // P within r of Q is within asin(r / |Q|) of Q's direction, and also within asin(r / |P|): Q lies on
 // the half-line through the axis at its angle, and P is |P| sin(angle) from that line. So a piece whose
 // chord keeps away from the axis (rayMin: its nearest distance) narrows the reach of the inner rings,
 // where the disc alone would take the whole ring.
 float shaped_reach(int i, Bands b, float rayMin) {
     float dMin = max(b.eLo * (uRingA[i].x - uRingB[i].x), rayMin);
-    float r = uFiberRadius + uCurlAmplitude;
+    float r = uFiberRadius + shape_displacement();
     float disc = dMin > r ? asin(r / dMin) : 3.14159265359;
     return uRingB[i].y + disc + EPS_ANGLE;
 }
