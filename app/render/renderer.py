@@ -52,7 +52,10 @@ BRUTE_CHUNK_SHAPED = (LOOP_CAP - 16 * MAX_RINGS) // (4 * (MAX_SUB + 2))
 TWIST_PATTERNS, CURL_PATTERNS = fibers.TWIST_PATTERNS, fibers.CURL_PATTERNS
 SHADING_MODELS = {"kajiya_kay": 0, "marschner": 1}
 SHADOW_MODES = {"off": 0, "density": 1, "traced": 2}
-# standard MSAA sample positions (pixel units about the centre), as GL implementations place them
+# standard MSAA sample positions (1/16 px about the pixel centre, y up), as GL implementations place them
+# (llvmpipe's 4x the same). quality.msaa casts one single-ray frame at each (render): a multisample
+# target shades a proxy fragment once for all its samples, which leaves the grain of sub-pixel fibers
+# inside a container as it is, and llvmpipe stores 2x as 4 samples, so a 2-bit mask covered half a pixel.
 MSAA_PATTERNS = {
     2: [(4, 4), (-4, -4)],
     4: [(-2, -6), (6, -2), (-6, 2), (2, 6)],
@@ -208,18 +211,18 @@ class Renderer:
         release_framebuffers(self._parking, self._targets)
 
     # --- drawing -----------------------------------------------------------------------------------
-    def proxy_program(self, p: Params, mode: str, cost: bool, supersample: int = 1,
-                      msaa: int = 0) -> moderngl.Program:
+    def proxy_program(self, p: Params, mode: str, cost: bool) -> moderngl.Program:
         """The proxies strategy's program: one traversal per proxy fragment (stages/container.frag)."""
-        defines = {**model_defines(p, mode, cost), "SUPERSAMPLE": supersample, "MSAA_SAMPLES": msaa}
-        return self.programs.get(self.ctx, "stages/container.vert", "stages/container.frag", defines)
+        return self.programs.get(self.ctx, "stages/container.vert", "stages/container.frag",
+                                 model_defines(p, mode, cost))
 
     def compile_programs(self, p: Params, mode: str, cost: bool = False, antialias: bool = False) -> None:
         """Compile what a frame of ``p`` in ``mode`` may draw with, under either visibility: before a
-        frame is split into strips, and to check a shader reload. Raises ShaderError."""
-        ss = p["quality.supersample"] if antialias and mode != "brute" else 1
-        msaa = self._msaa_samples(p) if antialias and mode != "brute" else 0
-        self.proxy_program(p, mode, cost, supersample=ss if not msaa else 1, msaa=0 if cost else msaa)
+        frame is split into strips, and to check a shader reload. Raises ShaderError (ParamError for an
+        MSAA sample count this OpenGL lacks). Antialiasing draws single-ray frames: no program of its own."""
+        if antialias and mode != "brute":
+            self._msaa_samples(p)
+        self.proxy_program(p, mode, cost)
         self.program(p, mode, cost)
         if not cost:
             self.program(p, mode, False, stage="resolve")
@@ -265,11 +268,7 @@ class Renderer:
             if name in prog:
                 prog[name].value = value
         look.apply_lighting(prog, p, cam.position, cam.target)
-        samples = np.zeros((16, 2), np.float32)
-        pattern = MSAA_PATTERNS.get(p["quality.msaa"])
-        if pattern:
-            samples[:len(pattern)] = np.array(pattern) / 16.0
-        for name, arr in (*ring_uniforms(lay).items(), ("uSampleOffsets", samples)):
+        for name, arr in ring_uniforms(lay).items():
             if name in prog:
                 prog[name].write(arr.tobytes())
         if "uClipFromCamera" in prog:
@@ -439,53 +438,36 @@ class Renderer:
             vao.render(moderngl.TRIANGLES, instances=self.scene.n_segments)
         return len(ranges)
 
-    def _render_proxies(self, p: Params, cam: Camera, size, outputs, offset, mode: str, antialias: bool,
-                        region) -> Frame:
-        """The proxies strategy: every container segment drawn as its screen rectangle, one traversal
-        per fragment, the depth test keeping the nearest (stages/container.vert, container.frag)."""
+    def _proxy_pass(self, p: Params, cam: Camera, size, offset, mode: str, region) -> int:
+        """One single-ray sample of the frame by the proxies strategy: every container segment drawn as its
+        screen rectangle, one traversal per fragment, the depth test keeping the nearest (stages/
+        container.vert, container.frag), into the "image" targets. Antialiasing draws one of these per
+        sample (``render``): a fragment sees only its own container, so rays traced inside it could not
+        reach a container behind where they miss, and the depth test keeps one fragment per pixel.
+        Returns the draw count."""
+        fbo = self._target(size, "image")
+        fbo.depth_mask = True
+        self._use(fbo, region)
+        self.ctx.enable(moderngl.DEPTH_TEST)
+        self.ctx.depth_func = "<"
+        clear_targets(fbo)
+        prog = self.proxy_program(p, mode, cost=False)
+        self._set_uniforms(prog, p, cam, size, offset)
+        draws = self._proxy_draws(prog, p, mode, traversals_per_fragment(p, mode))
+        fbo.depth_mask = False
+        self.ctx.disable(moderngl.DEPTH_TEST)
+        fbo.scissor = None
+        return draws
+
+    def _proxy_cost(self, p: Params, cam: Camera, size, outputs, offset, mode: str, region, frame: Frame) -> None:
+        """The proxies' cost and iters outputs: the work of every proxy fragment, added up (or the most of
+        it, for iters) by blending."""
         ctx = self.ctx
-        frame = Frame()
-        supersample = p["quality.supersample"] if antialias and mode != "brute" else 1
-        msaa = self._msaa_samples(p) if antialias and mode != "brute" else 0
-        rays = 1 if mode == "brute" else max(supersample ** 2, msaa, 1)
-        rays *= traversals_per_fragment(p, mode)
-        used = []
-        wants_pass = {"ids", "geom", "draw"} & set(outputs) or ("color" in outputs and not msaa)
-        ctx.enable(moderngl.DEPTH_TEST)
-        ctx.depth_func = "<"
-        if wants_pass:
-            fbo = self._target(size, "image")
-            fbo.depth_mask = True
-            used.append(fbo)
-            self._use(fbo, region)
-            clear_targets(fbo)
-            prog = self.proxy_program(p, mode, cost=False, supersample=supersample)
-            self._set_uniforms(prog, p, cam, size, offset)
-            frame.draws += self._proxy_draws(prog, p, mode, rays)
-            fbo.depth_mask = False
-            if "color" in outputs and not msaa:
-                frame.color, frame.coverage = _composite(_read(fbo, 0, 4, "f1", size), p)
-            if "ids" in outputs:
-                frame.ids = _read(fbo, 1, 4, "u4", size)
-            if "geom" in outputs:
-                frame.geom = _read(fbo, 2, 4, "f4", size)
-        if "color" in outputs and msaa:
-            ms, resolved = self._msaa_targets(size, msaa)
-            used += [ms, resolved]
-            self._use(ms, region)
-            ms.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
-            prog = self.proxy_program(p, mode, cost=False, msaa=msaa)
-            self._set_uniforms(prog, p, cam, size, offset)
-            frame.draws += self._proxy_draws(prog, p, mode, rays)
-            ms.scissor = None               # the resolve copies the whole target
-            ctx.copy_framebuffer(resolved, ms)
-            frame.color, frame.coverage = _composite(_read(resolved, 0, 4, "f1", size), p)
-        ctx.disable(moderngl.DEPTH_TEST)
+        rays = traversals_per_fragment(p, mode)
         for kind in ("cost", "iters"):
             if kind not in outputs:
                 continue
             fbo = self._target(size, "proxy cost")
-            used.append(fbo)
             self._use(fbo, region)
             fbo.clear(0.0, 0.0, 0.0, 0.0)
             ctx.enable(moderngl.BLEND)
@@ -504,21 +486,9 @@ class Renderer:
                 frame.iters = data[..., 3]
             ctx.blend_equation = moderngl.FUNC_ADD
             ctx.disable(moderngl.BLEND)
-        for fbo in used:
             fbo.scissor = None
-        return frame
 
-    def _msaa_targets(self, size: tuple[int, int], samples: int):
-        key = (size, "msaa", samples)
-        if key not in self._targets:
-            ms = self.ctx.framebuffer([self.ctx.renderbuffer(size, 4, samples=samples)],
-                                      self.ctx.depth_renderbuffer(size, samples=samples))
-            resolved = self.ctx.framebuffer([self.ctx.texture(size, 4, dtype="f1")])
-            self._targets[key] = ms
-            self._targets[key + ("resolved",)] = resolved
-        return self._targets[key], self._targets[key + ("resolved",)]
-
-    # --- the walk strategy ---------------------------------------------------------------------------
+    # --- a frame -----------------------------------------------------------------------------------------
     def render(self, p: Params, cam: Camera, size: tuple[int, int], *, outputs=("color",),
                offset=(0.0, 0.0), mode: str | None = None, antialias: bool = True,
                region: tuple[int, int, int, int] | None = None) -> Frame:
@@ -526,9 +496,10 @@ class Renderer:
 
         Both ways of finding a pixel's containers (``visibility``) give every output and the same fibers.
         With ``antialias``, colour honours quality.supersample (n x n stratified rays per pixel) or
-        quality.msaa; brute force always casts one ray per pixel: it is the reference for ids. The walk
-        casts a whole frame per sample and takes the nearest sample's ids, normal and depth; the proxies
-        trace the rays in the shader (msaa: one ray per sample, shaded once). ``region`` (x, y, w, h in
+        quality.msaa (one ray at each of the standard sample positions, MSAA_PATTERNS); brute force always
+        casts one ray per pixel: it is the reference for ids. Either strategy casts a whole single-ray frame
+        per sample, averages the premultiplied colours and takes the nearest sample's ids, normal and depth,
+        so both give the same picture in every mode. ``region`` (x, y, w, h in
         pixels, GL's bottom-left origin) renders only that rectangle: the rest of the targets keeps what
         earlier calls drew (tiled refinement).
         """
@@ -538,8 +509,7 @@ class Renderer:
         size = (int(size[0]), int(size[1]))
         region = (0, 0) + size if region is None else tuple(int(v) for v in region)
         self.prepare_state()
-        if self.visibility(p, cam, size) == "proxies":
-            return self._render_proxies(p, cam, size, outputs, offset, mode, antialias, region)
+        proxies = self.visibility(p, cam, size) == "proxies"
         frame = Frame()
         offsets = [tuple(offset)]
         if antialias and mode != "brute":
@@ -553,15 +523,20 @@ class Renderer:
             rgba, ids, geom = None, None, None
             fbo = self._target(size, "image")
             for o in offsets:
-                draws, left = self._pass(p, cam, size, o, mode, False, region)
+                if proxies:
+                    draws, left = self._proxy_pass(p, cam, size, o, mode, region), 0
+                else:
+                    draws, left = self._pass(p, cam, size, o, mode, False, region)
                 frame.draws += draws
                 frame.unfinished = max(frame.unfinished, left)
                 if len(offsets) == 1 and not ({"color", "ids", "geom"} & image_outputs):
                     break                               # "draw": the targets hold the frame
                 if "color" in outputs:
-                    sample = _read(fbo, 0, 4, "f1", size).astype(np.float64)
+                    sample = _read(fbo, 0, 4, "f1", size)
+                    if len(offsets) > 1:
+                        sample = sample.astype(np.float64)      # a sum of samples outgrows uint8
                     rgba = sample if rgba is None else rgba + sample
-                if {"ids", "geom"} & image_outputs or len(offsets) > 1:
+                if {"ids", "geom"} & image_outputs:
                     s_ids, s_geom = _read(fbo, 1, 4, "u4", size), _read(fbo, 2, 4, "f4", size)
                     if ids is None:
                         ids, geom = s_ids, s_geom
@@ -569,12 +544,14 @@ class Renderer:
                         nearer = (s_ids[..., 0] > 0) & ((ids[..., 0] == 0) | (s_geom[..., 3] < geom[..., 3]))
                         ids[nearer], geom[nearer] = s_ids[nearer], s_geom[nearer]
             if "color" in outputs:
-                frame.color, frame.coverage = _composite(rgba / len(offsets), p)
+                frame.color, frame.coverage = _composite(rgba / len(offsets) if len(offsets) > 1 else rgba, p)
             if "ids" in outputs:
                 frame.ids = ids
             if "geom" in outputs:
                 frame.geom = geom
-        if {"cost", "iters"} & set(outputs):
+        if {"cost", "iters"} & set(outputs) and proxies:
+            self._proxy_cost(p, cam, size, outputs, offset, mode, region, frame)
+        elif {"cost", "iters"} & set(outputs):
             draws, left = self._pass(p, cam, size, offsets[0], mode, True, region)
             frame.draws += draws
             state = self._target(size, "state")
