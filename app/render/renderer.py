@@ -114,6 +114,7 @@ class Renderer:
         self._vaos: dict[tuple, moderngl.VertexArray] = {}
         self._layers: tuple[tuple, float] | None = None     # (camera and size, proxy_layers) of the last frame
         self._targets: dict[tuple, moderngl.Framebuffer] = {}
+        self._sampled: dict[tuple, tuple] = {}      # the last antialiased frame per size (_keep_outside)
         self._parking = ctx.framebuffer(ctx.renderbuffer((1, 1)))   # bound while targets are released
 
     # --- scene -------------------------------------------------------------------------------------
@@ -209,6 +210,7 @@ class Renderer:
 
     def release_targets(self) -> None:
         release_framebuffers(self._parking, self._targets)
+        self._sampled.clear()
 
     # --- drawing -----------------------------------------------------------------------------------
     def proxy_program(self, p: Params, mode: str, cost: bool) -> moderngl.Program:
@@ -488,6 +490,20 @@ class Renderer:
             ctx.disable(moderngl.BLEND)
             fbo.scissor = None
 
+    def _keep_outside(self, size, region, *images):
+        """A frame of several samples is a mean of read-backs, which no target holds, so the renderer keeps
+        the last one per size (premultiplied colour, ids, geometry; None: not asked for): outside ``region``
+        an antialiased frame drawn in tiles shows what earlier calls drew, as a one-ray frame's targets do."""
+        last = self._sampled.get(size, (None,) * len(images))
+        if region != (0, 0) + size:
+            x, y, w, h = region
+            inside = np.zeros((size[1], size[0], 1), bool)
+            inside[size[1] - y - h:size[1] - y, x:x + w] = True      # read-backs are top row first
+            images = tuple(new if new is None or old is None else np.where(inside, new, old)
+                           for new, old in zip(images, last))
+        self._sampled[size] = tuple(new if new is not None else old for new, old in zip(images, last))
+        return images
+
     # --- a frame -----------------------------------------------------------------------------------------
     def render(self, p: Params, cam: Camera, size: tuple[int, int], *, outputs=("color",),
                offset=(0.0, 0.0), mode: str | None = None, antialias: bool = True,
@@ -543,8 +559,11 @@ class Renderer:
                     else:                               # the nearest hit over the samples names the pixel
                         nearer = (s_ids[..., 0] > 0) & ((ids[..., 0] == 0) | (s_geom[..., 3] < geom[..., 3]))
                         ids[nearer], geom[nearer] = s_ids[nearer], s_geom[nearer]
+            if len(offsets) > 1:
+                rgba, ids, geom = self._keep_outside(size, region, rgba / len(offsets) if rgba is not None
+                                                     else None, ids, geom)
             if "color" in outputs:
-                frame.color, frame.coverage = _composite(rgba / len(offsets) if len(offsets) > 1 else rgba, p)
+                frame.color, frame.coverage = _composite(rgba, p)
             if "ids" in outputs:
                 frame.ids = ids
             if "geom" in outputs:

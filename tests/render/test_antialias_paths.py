@@ -96,3 +96,16 @@ def test_supersample_shows_no_background_inside_the_silhouette(default):
     assert seams.sum() == 0, f"supersample 4 lets the background through in {seams.sum()} pixels of the silhouette"
     mean = np.mean([f.color.astype(np.float64) for f in frames], 0)
     assert np.abs(ss.color - mean).max() <= 1.0 + 1e-9, "supersample 4 is not the mean of its 16 rays"
+
+
+@pytest.mark.parametrize("visibility", ["proxies", "walk"])
+def test_an_antialiased_frame_drawn_in_tiles_equals_the_frame_drawn_whole(default, visibility):
+    renderer, p, cam = default
+    q = p.replace(**{"quality.visibility": visibility, "quality.supersample": 2})
+    whole = renderer.render(q, cam, SIZE, outputs=("color", "ids"))
+    renderer.render(q, cam, SIZE, outputs=("color",), offset=(3.0, 0.0))       # something else to overwrite
+    w, h = SIZE
+    for tile in ((0, 0, w // 2, h), (w // 2, 0, w - w // 2, h // 3), (w // 2, h // 3, w - w // 2, h - h // 3)):
+        tiled = renderer.render(q, cam, SIZE, outputs=("color", "ids"), region=tile)
+    np.testing.assert_array_equal(tiled.color, whole.color)
+    np.testing.assert_array_equal(tiled.ids, whole.ids)
