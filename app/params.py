@@ -132,6 +132,8 @@ SPEC: tuple[Param, ...] = (
     P("scene.groom_file", str, "", "groom file (.hair .data .tfx .ply) when generator = 'groom'"),
     P("scene.groom_up", str, "auto", "up axis of the groom file", choices=("auto", "y", "z", "-x", "x")),
     P("scene.groom_scale", float, 1.0, "scale applied to the groom file's coordinates", 1e-6, 1e6),
+    P("scene.groom_radius_scale", float, 1.0, "clump size of a groom: its container radius (from the spacing "
+      "of the roots, or what a cluster's strands need) times this", 0.05, 20.0),
     P("scene.groom_cluster", int, 0, "cluster strands into this many thick containers (0 = one per strand)",
       0, 100_000),
 
@@ -143,6 +145,11 @@ SPEC: tuple[Param, ...] = (
       0.0, 30.0, "degrees"),
     P("fibers.even_spacing", float, 0.0, "0: same angle on every ring; 1: same arc length (thesis 3.6)",
       0.0, 1.0),
+    P("fibers.edge_density", float, 1.0, "clump profile: fiber density on the outermost ring as a fraction "
+      "of the core's; below 1 the outer rings thin out, so the clump has no hard wall and neighbours blend",
+      0.02, 1.0),
+    P("fibers.edge_width", float, 0.5, "clump profile: how far in from the edge the density thins, as a "
+      "fraction of the container radius (fibers.edge_density)", 0.05, 1.0),
     P("fibers.fiber_radius", float, 0.01, "fiber radius as a fraction of the container radius; at most "
       "0.5 / rings so a fiber fits its ring", 0.0, 0.5),
     P("fibers.radial_jitter", float, 0.5, "radial offset as a fraction of the most that keeps the fiber in "

@@ -50,7 +50,7 @@ class RingLayout:
 # it is computed once per distinct set and shared, its arrays read-only.
 LAYOUT_KEYS = ("fibers.rings", "fibers.phi_step", "fibers.phi_increment", "fibers.even_spacing", "fibers.hash",
                "fibers.seed", "fibers.fiber_radius", "fibers.radial_jitter", "fibers.angular_jitter",
-               "fibers.length_jitter")
+               "fibers.length_jitter", "fibers.edge_density", "fibers.edge_width")
 
 
 def ring_layout(p: Params) -> RingLayout:
@@ -66,12 +66,25 @@ def _ring_layout(values: tuple) -> RingLayout:
     return lay
 
 
+def edge_profile(p, rho: np.ndarray) -> np.ndarray:
+    """Per ring, the clump profile's density factor (1 in the core, edge_density on the outermost ring).
+
+    It falls linearly with the ring's outer boundary 1 - i/K over the outer edge_width of the radius, so
+    the outermost ring (boundary 1) gets edge_density exactly and a ring whose boundary is 1 - edge_width
+    or less gets 1. With the default edge_density 1 every factor is exactly 1.0 (today's layout)."""
+    outer = rho + 0.5 / len(rho)
+    width = p["fibers.edge_width"]
+    ramp = np.clip((outer - (1.0 - width)) / width, 0.0, 1.0)
+    return 1.0 - (1.0 - p["fibers.edge_density"]) * ramp
+
+
 def ring_step_deg(p, rho: np.ndarray) -> np.ndarray:
-    """Per ring, the angular step between fibers in degrees: phi_step grown by phi_increment per ring, and
-    by even_spacing towards the axis (1 keeps the arc length between neighbours equal on every ring)."""
+    """Per ring, the angular step between fibers in degrees: phi_step grown by phi_increment per ring, by
+    even_spacing towards the axis (1 keeps the arc length between neighbours equal on every ring) and by
+    the clump profile towards the edge (a ring at density factor f has 1/f of the step, f of the fibers)."""
     i = np.arange(len(rho), dtype=np.float64)
     return (p["fibers.phi_step"] + i * p["fibers.phi_increment"]) * (
-        1.0 + p["fibers.even_spacing"] * (rho[0] / rho - 1.0))
+        1.0 + p["fibers.even_spacing"] * (rho[0] / rho - 1.0)) / edge_profile(p, rho)
 
 
 def _compute_ring_layout(p: dict) -> RingLayout:

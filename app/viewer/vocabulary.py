@@ -15,11 +15,12 @@ from ..params import SPEC, Params
 # to SPEC later and not placed here lands in the section of its group's first key, or "Other".
 SECTIONS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("Groom", ("scene.generator", "scene.groom_file", "scene.groom_up", "scene.groom_scale",
-               "scene.groom_cluster", "scene.count", "scene.radius", "scene.length", "scene.taper",
-               "scene.segments", "scene.bend", "scene.seed")),
+               "scene.groom_cluster", "scene.groom_radius_scale", "scene.count", "scene.radius", "scene.length",
+               "scene.taper", "scene.segments", "scene.bend", "scene.seed")),
     ("Strands and fibers", ("fibers.rings", "fibers.phi_step", "fibers.phi_increment", "fibers.even_spacing",
-                            "fibers.fiber_radius", "fibers.radial_jitter", "fibers.angular_jitter",
-                            "fibers.length_jitter", "strand.tip_width", "strand.taper_start", "fibers.hash",
+                            "fibers.fiber_radius", "fibers.edge_density", "fibers.edge_width",
+                            "fibers.radial_jitter", "fibers.angular_jitter", "fibers.length_jitter",
+                            "strand.tip_width", "strand.taper_start", "fibers.hash",
                             "fibers.seed")),
     ("Shape", ("shape.curl_amplitude", "shape.curl_frequency", "shape.curl_pattern", "shape.frizz",
                "shape.noise", "shape.noise_frequency", "shape.twist", "shape.twist_pattern", "shape.ellipsoid")),
@@ -40,11 +41,13 @@ OPEN_SECTIONS = ("Groom", "Strands and fibers", "Shading", "Lighting")
 
 LABELS: dict[str, str] = {
     "scene.generator": "hair from", "scene.groom_file": "groom file", "scene.groom_up": "up axis",
-    "scene.groom_scale": "groom scale", "scene.groom_cluster": "clumps", "scene.count": "guide hairs",
+    "scene.groom_scale": "groom scale", "scene.groom_cluster": "clumps",
+    "scene.groom_radius_scale": "clump size", "scene.count": "guide hairs",
     "scene.radius": "clump radius", "scene.length": "hair length", "scene.taper": "clump taper",
     "scene.segments": "segments per guide", "scene.bend": "bend", "scene.seed": "placement seed",
     "fibers.rings": "strand layers", "fibers.phi_step": "strand spacing", "fibers.phi_increment":
     "spacing grows inward", "fibers.even_spacing": "even gaps", "fibers.fiber_radius": "strand thickness",
+    "fibers.edge_density": "edge density", "fibers.edge_width": "soft edge width",
     "fibers.radial_jitter": "scatter in/out", "fibers.angular_jitter": "scatter around",
     "fibers.length_jitter": "length variation", "strand.tip_width": "tip thickness",
     "strand.taper_start": "taper begins", "fibers.hash": "random pattern", "fibers.seed": "strand seed",
@@ -84,6 +87,7 @@ THESIS: dict[str, str] = {
     "fibers.phi_increment": "phi increment per ring inward (thesis 4.3)",
     "fibers.even_spacing": "even spacing: same arc length on every ring (thesis 3.6)",
     "fibers.fiber_radius": "fiber radius, a fraction of the container radius",
+    "fibers.edge_density": "clump profile: fibers on the outer rings, a fraction of the inner rings' density",
     "fibers.radial_jitter": "radial jitter (thesis 3.5)", "fibers.angular_jitter": "angular jitter (thesis 3.5)",
     "fibers.length_jitter": "length jitter (thesis 3.7)",
     "fibers.hash": "the per-fiber hash: integer, or the thesis's fract(1207.523 * phi)",
@@ -122,6 +126,8 @@ APPLIES: dict[str, tuple[Callable[[Params], bool], str]] = {
     "scene.groom_up": (lambda p: p["scene.generator"] == "groom", "not a groom"),
     "scene.groom_scale": (lambda p: p["scene.generator"] == "groom", "not a groom"),
     "scene.groom_cluster": (lambda p: p["scene.generator"] == "groom", "not a groom"),
+    "scene.groom_radius_scale": (lambda p: p["scene.generator"] == "groom", "not a groom"),
+    "fibers.edge_width": (lambda p: p["fibers.edge_density"] < 1, "edge density is 1"),
     "scene.count": (lambda p: p["scene.generator"] not in ("single", "groom"), "one clump / a groom file sets it"),
     "scene.radius": (lambda p: p["scene.generator"] != "groom", _GENERATED_ONLY),
     "scene.length": (lambda p: p["scene.generator"] != "groom", _GENERATED_ONLY),

@@ -55,21 +55,30 @@ def groom_scene(groom: Groom, p: Params, seconds: dict[str, float] | None = None
         raise GroomError(f"{name}: no usable strands: {str(exc).split(': ', 1)[-1]}") from None
     kept = np.flatnonzero(base.labels >= 0)
     floor = float(base.radii[0])
-    radius_reason = "0.75 x the median distance between neighbouring roots (scene.radius is not used for grooms)"
+    radius_reason = "0.75 x the median distance between neighbouring roots"
     if cluster and cluster < len(kept):
         # Cluster at the strands' own resolution; the guides are then resampled like strands would be.
         counts = np.fromiter((len(groom.strands[i]) for i in kept), np.int64, len(kept))
         fine_n = int(min(64, counts.max() - 1))
         guides = strands_to_guides(groom, fine_n, cluster=cluster, seed=p["scene.seed"])
         fine, radii = list(guides.polylines), np.asarray(guides.radii)
-        radius_reason = (f"covers 90% of each cluster's strands, at least the root-spacing radius {floor:.4g} "
-                         f"(scene.radius is not used for grooms)")
+        radius_reason = f"covers 90% of each cluster's strands, at least the root-spacing radius {floor:.4g}"
         cluster_used = cluster
         labels = guides.labels
     else:
         fine, radii = [groom.strands[i] for i in kept], np.full(len(kept), floor)
         cluster_used = 0
         labels = base.labels
+    # The clump size: a scale of the groom's own radius, not scene.radius (the generators' radius in world
+    # units), because one number in units cannot suit grooms whose root spacings differ 7,000-fold
+    # (Ratboy 0.0026, Bangs 18); scaled before the segment count, whose tolerance is in radii.
+    scale = p["scene.groom_radius_scale"]
+    if scale != 1.0:
+        radii = radii * scale
+        radius_reason = f"{scale:g} x ({radius_reason}): scene.groom_radius_scale"
+    taper = p["scene.taper"]
+    radius_reason += (f"; the tip radius is {1.0 - taper:g} x the root's (scene.taper = {taper:g})" if taper
+                      else "; scene.radius is the generators' (grooms scale theirs with scene.groom_radius_scale)")
     if len(fine) > containers.MAX_GUIDES:
         raise GroomError(f"{name}: {len(fine):,} guides is more than the renderer's {containers.MAX_GUIDES:,}; set "
                          f"scene.groom_cluster to make fewer")
@@ -122,9 +131,10 @@ def scene_from_groom(p: Params) -> "GroomScene":
     thick containers, many fibers each). Segments: ``scene.segments`` when it is more than 1; at 1, the
     default, it is chosen per groom (:func:`auto_segments`), because one straight segment from root to tip
     never contains a real strand. Guides are the file's own vertices whenever every strand already has
-    exactly that many segments. Radius: from root spacing (clusters: enough for their members);
-    ``scene.radius`` is the generators' and is not used. Raises :class:`GroomError` for anything wrong with
-    the file, including a file without one usable strand.
+    exactly that many segments. Radius: from root spacing (clusters: enough for their members), times
+    ``scene.groom_radius_scale``; ``scene.radius`` is the generators' and is not used. ``scene.taper``
+    narrows every container toward the tip as for the generators (tighter clumps at the tips). Raises
+    :class:`GroomError` for anything wrong with the file, including a file without one usable strand.
     """
     t0 = time.perf_counter()
     path = Path(p["scene.groom_file"])

@@ -1,0 +1,247 @@
+"""The clump profile (fibers.edge_density, fibers.edge_width: fewer fibers on the outer rings) and the
+clump size of grooms (scene.groom_radius_scale, scene.taper on groom containers).
+
+The profile lives in the ring layout only (app/fibers/layout.py: fibers per ring), so the GLSL takes it
+through the per-ring uniforms unchanged; the OSL computes the layout in the shader (osl/fibers/layout.osl:
+vf_ring) and is held to the float64 layout in Cycles below.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from app import reference
+from app.fibers import fiber_count, ring_layout
+from app.params import ParamError, Params
+from app.render.camera import Camera
+from app.render.explicit import ExplicitRenderer, compare_frames, fiber_centers
+from app.scene.containers import Scene
+from tests.helpers import gpu_ids, reference_ids, setup
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT.parent / "shared" / "hair-data"
+needs_data = pytest.mark.skipif(not DATA.is_dir(), reason=f"shared hair data not found at {DATA}")
+SIZE = (160, 96)
+PROFILE = {"fibers.edge_density": 0.25, "fibers.edge_width": 0.6}
+
+
+# --------------------------------------------------------------------------------------------------
+# The layout
+# --------------------------------------------------------------------------------------------------
+def _old_counts(p: Params) -> np.ndarray:
+    """Fibers per ring as the layout counted them before the profile existed (phi_step, phi_increment,
+    even_spacing only): the prediction for the default profile."""
+    K = p["fibers.rings"]
+    i = np.arange(K, dtype=np.float64)
+    rho = 1.0 - (i + 0.5) / K
+    step = (p["fibers.phi_step"] + i * p["fibers.phi_increment"]) * (1.0 + p["fibers.even_spacing"] * (rho[0] / rho - 1.0))
+    return np.maximum(1, np.floor(360.0 / step + 0.5)).astype(np.int64)
+
+
+@pytest.mark.parametrize("values", [{}, {"fibers.rings": 7, "fibers.phi_step": 3.3, "fibers.phi_increment": 1.7,
+                                         "fibers.even_spacing": 0.6}, {"fibers.rings": 64, "fibers.phi_step": 0.7,
+                                                                       "fibers.fiber_radius": 0.005}])
+def test_default_profile_is_todays_layout(values):
+    """edge_density 1 is today's layout bit for bit, whatever edge_width says."""
+    for width in (0.05, 0.5, 1.0):
+        p = Params({**values, "fibers.edge_width": width})
+        assert ring_layout(p).n.tolist() == _old_counts(p).tolist()
+
+
+@pytest.mark.parametrize("rings", [1, 4, 10, 64])
+@pytest.mark.parametrize("density,width", [(0.25, 0.6), (0.02, 0.05), (0.5, 1.0), (0.02, 1.0)])
+def test_profile_thins_the_outer_rings_only(rings, density, width):
+    """The outermost ring holds edge_density of the fibers it held (to the rounding of a whole fiber), a
+    ring whose outer boundary lies edge_width or more inside the edge keeps all of its fibers, and in
+    between the count never grows toward the edge."""
+    base = Params({"fibers.rings": rings, "fibers.fiber_radius": 0.2 / rings})
+    p = base.replace(**{"fibers.edge_density": density, "fibers.edge_width": width})
+    before, after = ring_layout(base).n, ring_layout(p).n
+    assert abs(after[0] - before[0] * density) <= 0.5 + 1e-9 or after[0] == 1
+    outer = 1.0 - np.arange(rings) / rings
+    core = outer <= 1.0 - width + 1e-12
+    assert (after[core] == before[core]).all()
+    assert (after <= before).all()
+    assert (np.diff(after / before) >= -1e-12).all(), "density must not rise toward the edge"
+    thesis, exact = fiber_count(p)
+    assert exact == int(after.sum()) and thesis == pytest.approx(
+        float((360.0 / (base["fibers.phi_step"] / reference_profile(p))).sum()))
+
+
+def reference_profile(p: Params) -> np.ndarray:
+    """The profile written out once more from its definition: linear in the ring's outer boundary."""
+    K = p["fibers.rings"]
+    outer = 1.0 - np.arange(K) / K
+    t = np.clip((outer - (1.0 - p["fibers.edge_width"])) / p["fibers.edge_width"], 0.0, 1.0)
+    return 1.0 - (1.0 - p["fibers.edge_density"]) * t
+
+
+@pytest.mark.parametrize("rings", [1, 2, 8, 64])
+@pytest.mark.parametrize("density", [0.02, 0.3])
+@pytest.mark.parametrize("width", [0.05, 1.0])
+def test_profile_layout_is_finite_and_fibers_stay_in_their_slots(rings, density, width):
+    """At the ends of both ranges, at full jitter and at the thickest fiber a ring allows: every number
+    finite, every fiber inside its ring's annulus and inside its angular slot (so the traversal's reach
+    still bounds it), even on a ring left with one fiber."""
+    p = Params({"fibers.rings": rings, "fibers.fiber_radius": 0.5 / rings, "fibers.radial_jitter": 1.0,
+                "fibers.angular_jitter": 1.0, "fibers.edge_density": density, "fibers.edge_width": width,
+                "fibers.phi_step": 20.0})
+    lay = ring_layout(p)
+    for name in ("rho", "dphi", "rot", "max_dr", "max_dphi", "reach"):
+        assert np.isfinite(getattr(lay, name)).all(), name
+    ring, j, cx, cy, _ = reference.all_fibers(lay, 3)
+    r = np.hypot(cx, cy)
+    half = 0.5 / rings
+    assert (np.abs(r - lay.rho[ring]) <= half - lay.fiber_radius + 1e-12).all()
+    slot = lay.rot[ring] + j * lay.dphi[ring]
+    off = np.angle(np.exp(1j * (np.arctan2(cy, cx) - slot)))
+    assert (np.abs(off) <= lay.max_dphi[ring] + 1e-9).all()
+
+
+def test_profile_range_is_checked():
+    with pytest.raises(ParamError, match="fibers.edge_density"):
+        Params({"fibers.edge_density": 0.0})
+    with pytest.raises(ParamError, match="fibers.edge_width"):
+        Params({"fibers.edge_width": 0.0})
+
+
+# --------------------------------------------------------------------------------------------------
+# The GLSL twin (the per-ring uniforms), against the reference and brute force
+# --------------------------------------------------------------------------------------------------
+def test_profile_changes_the_image(renderer):
+    base = {"scene.count": 8, "scene.segments": 3, "fibers.phi_step": 3.0}
+    p, scene, cam = setup(renderer, base)
+    before = renderer.render(p, cam, SIZE).color
+    p2, _, cam2 = setup(renderer, {**base, **PROFILE})
+    after = renderer.render(p2, cam2, SIZE).color
+    changed = np.any(before != after, -1).mean()
+    assert changed > 0.01, f"the profile changed only {changed:.4%} of the pixels"
+
+
+PROFILE_SCENES = [
+    ("single-side", {"scene.generator": "single", "scene.radius": 1.0, "scene.length": 4.0, **PROFILE},
+     {"elevation": 0.0}),
+    ("sparse-edge-jitter", {"scene.generator": "single", "scene.radius": 1.0, "scene.length": 3.0,
+                            "fibers.edge_density": 0.02, "fibers.edge_width": 1.0, "fibers.radial_jitter": 1.0,
+                            "fibers.angular_jitter": 1.0, "fibers.fiber_radius": 0.05}, {"elevation": 25.0}),
+    ("tapered-bent", {"scene.count": 6, "scene.segments": 4, "scene.bend": 70.0, "scene.taper": 0.6,
+                      "fibers.edge_density": 0.1, "fibers.edge_width": 0.05}, {"azimuth": 100.0}),
+    ("grazing", {"scene.generator": "single", "scene.radius": 1.0, "scene.length": 1.0, "fibers.length_jitter": 0.0,
+                 "fibers.edge_density": 0.05, "fibers.phi_step": 2.0}, {"elevation": 89.0}),
+]
+
+
+@pytest.mark.parametrize("name,values,camera", PROFILE_SCENES, ids=[s[0] for s in PROFILE_SCENES])
+def test_profile_exact_equals_brute_and_the_reference(renderer, name, values, camera):
+    p, scene, cam = setup(renderer, values, camera)
+    frames = {m: renderer.render(p, cam, SIZE, outputs=("ids", "geom"), mode=m) for m in ("exact", "fast", "brute")}
+    exact, brute = frames["exact"], frames["brute"]
+    assert exact.hit.sum() > 200, "the scene should show fibers"
+    differ = np.any(exact.ids[..., :3] != brute.ids[..., :3], -1)
+    assert differ.sum() == 0, f"{name}: {differ.sum()} pixels differ between exact and brute"
+    assert (frames["fast"].hit == exact.hit).all(), "fast and exact must agree on coverage"
+    for f in frames.values():
+        assert np.isfinite(f.geom).all()
+    ref = reference_ids(scene, p, cam, SIZE)
+    got = gpu_ids(exact)
+    hit = (ref[..., 0] > 0) | (got[..., 0] > 0)
+    same = np.all(ref == got, -1)[hit]
+    assert same.mean() >= 0.999, f"{(~same).sum()} of {hit.sum()} hit pixels disagree with float64"
+
+
+# --------------------------------------------------------------------------------------------------
+# The explicit baseline places and draws the same fibers
+# --------------------------------------------------------------------------------------------------
+def test_explicit_places_the_profiled_fibers():
+    lay = reference.ring_layout(Params({"fibers.rings": 12, "fibers.radial_jitter": 1.0, **PROFILE}))
+    guides = np.array([0, 5, 99])
+    cx, cy, v_end, _, _ = fiber_centers(lay, guides)
+    for gi, g in enumerate(guides):
+        _, _, rx, ry, rv = reference.all_fibers(lay, int(g))
+        np.testing.assert_array_equal(cx[gi], rx)
+        np.testing.assert_array_equal(cy[gi], ry)
+        np.testing.assert_array_equal(v_end[gi], rv)
+
+
+def test_explicit_draws_the_profiled_fibers(ctx, renderer):
+    p, scene, cam = setup(renderer, {"scene.count": 8, "fibers.phi_step": 3.0, **PROFILE})
+    virtual = renderer.render(p, cam, SIZE, outputs=("ids",), mode="exact")
+    e = ExplicitRenderer(ctx)
+    try:
+        e.set_scene(scene, p)
+        explicit = e.render(p, cam, SIZE, outputs=("ids",))
+    finally:
+        e.release()
+        e.release_targets()
+    # the floors of tests/test_explicit.py (ribbons against cylinders; why there)
+    m = compare_frames(virtual, explicit)
+    assert m["covered_virtual"] > 0.05, "the scene should show fibers"
+    assert m["coverage_agree"] >= 0.995 and m["covered_iou"] >= 0.97 and m["id_agree"] >= 0.90, m
+
+
+# --------------------------------------------------------------------------------------------------
+# Grooms: clump size and taper
+# --------------------------------------------------------------------------------------------------
+def _groom(name: str, **values) -> Params:
+    return Params({"scene.generator": "groom", "scene.groom_file": str(DATA / name), **values})
+
+
+@needs_data
+def test_groom_radius_scale_scales_every_container_and_defaults_to_today():
+    from app.scene.grooms import scene_from_groom
+
+    base = scene_from_groom(_groom("Bangs_100.hair"))
+    same = scene_from_groom(_groom("Bangs_100.hair", **{"scene.groom_radius_scale": 1.0}))
+    assert np.array_equal(base.segments, same.segments)
+    big = scene_from_groom(_groom("Bangs_100.hair", **{"scene.groom_radius_scale": 1.5, "scene.segments": 3}))
+    assert base.source.segments == 3, "the comparison needs the same segment count"
+    np.testing.assert_allclose(big.segments[:, 3], 1.5 * base.segments[:, 3], rtol=1e-6)
+    np.testing.assert_allclose(big.source.radii, 1.5 * base.source.radii)
+    info = "\n".join(big.source_info())
+    assert "1.5 x (0.75 x the median distance" in info and "scene.groom_radius_scale" in info
+
+
+@needs_data
+def test_groom_radius_scale_applies_to_clusters():
+    from app.scene.grooms import scene_from_groom
+
+    a = scene_from_groom(_groom("Curly_100.ply", **{"scene.groom_cluster": 20, "scene.segments": 8}))
+    b = scene_from_groom(_groom("Curly_100.ply", **{"scene.groom_cluster": 20, "scene.segments": 8,
+                                                    "scene.groom_radius_scale": 0.5}))
+    np.testing.assert_allclose(b.source.radii, 0.5 * a.source.radii)
+
+
+@needs_data
+def test_taper_narrows_groom_containers_toward_the_tip():
+    """scene.taper reaches groom containers: the last segment of every guide ends at (1 - taper) of its
+    root radius, and vfiber info says so."""
+    from app.scene.grooms import scene_from_groom
+
+    s = scene_from_groom(_groom("Bangs_100.hair", **{"scene.taper": 0.6}))
+    rows = s.segments
+    guide = rows[:, 19].astype(np.int64)
+    last = np.r_[guide[1:] != guide[:-1], True]
+    first = np.r_[True, guide[1:] != guide[:-1]]
+    np.testing.assert_allclose(rows[last, 7], 0.4 * rows[first, 3], rtol=1e-5)
+    assert "scene.taper = 0.6" in "\n".join(s.source_info())
+
+
+@needs_data
+@pytest.mark.parametrize("values", [{"scene.groom_radius_scale": 1.6}, {"scene.taper": 0.7}, PROFILE])
+def test_groom_controls_change_the_groom_image(renderer, values):
+    from app.scene.grooms import scene_from_groom
+
+    frames = []
+    for v in ({}, values):
+        p = _groom("sintel_hair.tfx", **v)
+        scene = scene_from_groom(p)
+        renderer.set_scene(scene)
+        cam = Camera.from_params(_groom("sintel_hair.tfx"), scene_from_groom(_groom("sintel_hair.tfx")),
+                                 aspect=SIZE[0] / SIZE[1])
+        frames.append(renderer.render(p, cam, SIZE, outputs=("ids", "color")))
+    changed = np.any(frames[0].color != frames[1].color, -1).mean()
+    assert changed > 0.01, f"{values} changed only {changed:.4%} of the pixels"
+    assert np.isfinite(frames[1].color).all()
