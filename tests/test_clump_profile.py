@@ -245,3 +245,65 @@ def test_groom_controls_change_the_groom_image(renderer, values):
     changed = np.any(frames[0].color != frames[1].color, -1).mean()
     assert changed > 0.01, f"{values} changed only {changed:.4%} of the pixels"
     assert np.isfinite(frames[1].color).all()
+
+
+# --------------------------------------------------------------------------------------------------
+# The OSL twin: vf_ring computes the profiled layout in the shader (float32)
+# --------------------------------------------------------------------------------------------------
+from tests.test_osl_export import _probe, blender_test, cycles, gl_vs_cycles  # noqa: E402,F401 (fixture)
+
+OSL_PROFILES = [dict(PROFILE), {"fibers.edge_density": 0.02, "fibers.edge_width": 1.0, "fibers.rings": 64,
+                                "fibers.phi_step": 0.7, "fibers.fiber_radius": 0.005},
+                {"fibers.edge_density": 0.37, "fibers.edge_width": 0.05, "fibers.rings": 3, "fibers.phi_step": 9.0,
+                 "fibers.even_spacing": 1.0, "fibers.phi_increment": 2.0},
+                {"fibers.edge_density": 0.5, "fibers.hash": "thesis", "fibers.rings": 5, "fibers.phi_step": 7.0}]
+
+
+def test_the_export_carries_the_profile():
+    from app.export import osl as X
+
+    src = X.osl_source(Params(PROFILE))
+    assert "float fibers_edge_density = 0.25" in src and "float fibers_edge_width = 0.6" in src
+    assert "p.edgeDensity = fibers_edge_density;" in src and "p.edgeWidth = fibers_edge_width;" in src
+
+
+@blender_test
+def test_profiled_layout_in_cycles_matches_reference(cycles, tmp_path):
+    """Fibers per ring (exactly), rotation and reach of every ring of each profile, OSL against float64."""
+    looks = [Params(v) for v in OSL_PROFILES]
+    rows = [(li, i) for li, p in enumerate(looks) for i in range(p["fibers.rings"])]
+    fields = {"rings": ("int", "fibers.rings"), "phiStep": ("float", "fibers.phi_step"),
+              "phiIncrement": ("float", "fibers.phi_increment"), "evenSpacing": ("float", "fibers.even_spacing"),
+              "edgeDensity": ("float", "fibers.edge_density"), "edgeWidth": ("float", "fibers.edge_width"),
+              "fiberRadius": ("float", "fibers.fiber_radius"), "radialJitter": ("float", "fibers.radial_jitter"),
+              "angularJitter": ("float", "fibers.angular_jitter"), "seed": ("int", "fibers.seed")}
+    arrays = {f"a_{f}": (t, [repr(float(looks[li][key])) if t == "float" else int(looks[li][key])
+                             for li, _ in rows]) for f, (t, key) in fields.items()}
+    arrays["a_thesis"] = ("int", [int(looks[li]["fibers.hash"] == "thesis") for li, _ in rows])
+    arrays["a_ring"] = ("int", [i for _, i in rows])
+    body = [f"    if (k < {len(rows)}) {{", "        VfParams p;"]
+    body += [f"        p.{f} = a_{f}[k];" for f in fields]
+    body += ["        p.thesisHash = a_thesis[k];", "        VfRing R;", "        vf_ring(p, a_ring[k], R);",
+             "        value = color((float)R.n, R.rot, R.reach);", "    }"]
+    got = _probe(cycles, tmp_path, "vf_profile_probe", arrays, "\n".join(body), len(rows))
+    for li, p in enumerate(looks):
+        lay = reference.ring_layout(p)
+        sel = [k for k, (lj, _) in enumerate(rows) if lj == li]
+        assert got[sel, 0].tolist() == lay.n.tolist(), f"{OSL_PROFILES[li]}: fibers per ring differ"
+        assert lay.n[0] < ring_layout(p.replace(**{"fibers.edge_density": 1.0})).n[0]
+        np.testing.assert_allclose(got[sel, 1], lay.rot, atol=2e-6)
+        assert (got[sel, 2] >= lay.reach - 2e-6).all() and (got[sel, 2] <= lay.reach + 2e-3).all()
+
+
+@blender_test
+def test_profiled_fiber_ids_match_preview(cycles, renderer, tmp_path):
+    """One container with a thinned edge: Cycles sees the same fiber as GL in (nearly) every pixel."""
+    p = Params({"scene.generator": "single", "scene.radius": 0.3, "scene.length": 1.0, "fibers.rings": 5,
+                "fibers.phi_step": 6.0, "fibers.fiber_radius": 0.05, "fibers.edge_density": 0.3,
+                "fibers.edge_width": 0.7, "camera.elevation": 25.0})
+    r = gl_vs_cycles(cycles, renderer, p, tmp_path, "profile_ids", debug_view=1)
+    both = r["gl"] & r["cycles"]
+    rgb = np.round(r["res"]["rgba"][..., :3]).astype(np.int64)
+    same = (rgb[..., 0] == r["ids"][..., 1]) & (rgb[..., 1] == r["ids"][..., 2]) & (rgb[..., 2] == r["ids"][..., 0])
+    assert both.sum() > 2000 and r["agree"] >= 0.995
+    assert same[both].mean() >= 0.99, f"fiber ids agree on only {same[both].mean():.4%} of {both.sum()} px"

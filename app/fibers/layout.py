@@ -72,9 +72,10 @@ def edge_profile(p, rho: np.ndarray) -> np.ndarray:
     It falls linearly with the ring's outer boundary 1 - i/K over the outer edge_width of the radius, so
     the outermost ring (boundary 1) gets edge_density exactly and a ring whose boundary is 1 - edge_width
     or less gets 1. With the default edge_density 1 every factor is exactly 1.0 (today's layout)."""
-    outer = rho + 0.5 / len(rho)
-    width = p["fibers.edge_width"]
-    ramp = np.clip((outer - (1.0 - width)) / width, 0.0, 1.0)
+    # (1 - outer) / width from the ring index, so the outermost ring's ramp is exactly 1 (and the OSL's,
+    # which computes the same in float32: osl/fibers/layout.osl: vf_ring)
+    inset = np.arange(len(rho), dtype=np.float64) / len(rho)
+    ramp = np.clip(1.0 - inset / p["fibers.edge_width"], 0.0, 1.0)
     return 1.0 - (1.0 - p["fibers.edge_density"]) * ramp
 
 
