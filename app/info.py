@@ -39,6 +39,11 @@ def info_lines(p: Params, scene: Scene, label: str) -> list[str]:
         "(colour, ids, geometry, walk state: sized by the image alone)",
     ]
     if hasattr(scene, "source_info"):
+        from .scene.grooms.defaults import auto_report
+
+        auto = auto_report(p)
+        if auto:
+            lines.append(f"groom auto       {auto}")
         lines += groom_lines(scene)
     return lines
 

@@ -158,6 +158,8 @@ SPEC: tuple[Param, ...] = (
       "in its slot (thesis 3.5)", 0.0, 1.0),
     P("fibers.length_jitter", float, 0.2, "fibers end up to this fraction short of the tip (thesis 3.7)",
       0.0, 1.0),
+    P("fibers.groom_auto", bool, False, "grooms: choose rings, spacing, fiber thickness and a soft clump edge "
+      "from the groom (its strand spacing, the default camera's pixel size); values you set yourself win"),
     P("fibers.hash", str, "integer", "per-fiber random numbers: integer hash of (guide, ring, fiber) or the "
       "thesis's fract(1207.523 * phi)", choices=("integer", "thesis")),
     P("fibers.seed", int, 0, "seed of the per-fiber random numbers", 0, 2**31 - 1),

@@ -537,7 +537,7 @@ def resolve_params(target: str | None, assignments: Iterable[str] = (),
     scene, camera and quality. Anything else is two scenes at once, an error."""
     if look is None or target is None or look == target:
         values, label = _target_values(target or look)
-        return with_assignments(values, assignments), label
+        return _with_groom_defaults(values, assignments), label
     values, label = _target_values(target)
     if values.get("scene.generator") != "groom":
         raise UsageError(f"two scenes given: {target!r} and --preset {look!r}; --preset puts a preset's look on "
@@ -552,7 +552,20 @@ def resolve_params(target: str | None, assignments: Iterable[str] = (),
                          f"{preset.params['scene.groom_file']!r}), so with {target!r} there are two grooms; give "
                          f"it alone to see it, or take its look from a preset without a groom file")
     values.update(look_values(preset.params))
-    return with_assignments(values, assignments), f"{label} with the look of {preset.path or look}"
+    return _with_groom_defaults(values, assignments), f"{label} with the look of {preset.path or look}"
+
+
+def _with_groom_defaults(values: dict[str, Any], assignments: Iterable[str]) -> Params:
+    """``values`` with the ``--set`` assignments, then, when ``fibers.groom_auto`` is on for a groom, the
+    groom's own fiber defaults in every key that neither ``values`` (a preset, a look) nor ``--set`` gave."""
+    assignments = list(assignments)
+    p = with_assignments(values, assignments)
+    if p["fibers.groom_auto"] and is_groom(p):
+        from .scene.grooms.defaults import groom_defaults
+
+        given = set(values) | {text.split("=", 1)[0].strip() for text in assignments}
+        p = groom_defaults(p, given)[0]
+    return p
 
 
 def _target_values(target: str | None) -> tuple[dict[str, Any], str]:

@@ -37,7 +37,8 @@ def _old_counts(p: Params) -> np.ndarray:
     K = p["fibers.rings"]
     i = np.arange(K, dtype=np.float64)
     rho = 1.0 - (i + 0.5) / K
-    step = (p["fibers.phi_step"] + i * p["fibers.phi_increment"]) * (1.0 + p["fibers.even_spacing"] * (rho[0] / rho - 1.0))
+    step = (p["fibers.phi_step"] + i * p["fibers.phi_increment"]) * (
+        1.0 + p["fibers.even_spacing"] * (rho[0] / rho - 1.0))
     return np.maximum(1, np.floor(360.0 / step + 0.5)).astype(np.int64)
 
 
@@ -307,3 +308,119 @@ def test_profiled_fiber_ids_match_preview(cycles, renderer, tmp_path):
     same = (rgb[..., 0] == r["ids"][..., 1]) & (rgb[..., 1] == r["ids"][..., 2]) & (rgb[..., 2] == r["ids"][..., 0])
     assert both.sum() > 2000 and r["agree"] >= 0.995
     assert same[both].mean() >= 0.99, f"fiber ids agree on only {same[both].mean():.4%} of {both.sum()} px"
+
+
+# --------------------------------------------------------------------------------------------------
+# Per-groom defaults (fibers.groom_auto)
+# --------------------------------------------------------------------------------------------------
+SHARED = ("sintel_hair.tfx", "Bangs_100.hair", "Ratboy_mohawk.tfx", "harolongo.data", "Curly_100.ply")
+AUTO_KEYS = ("fibers.rings", "fibers.phi_step", "fibers.phi_increment", "fibers.even_spacing",
+             "fibers.fiber_radius", "fibers.edge_density", "fibers.edge_width")
+
+
+@needs_data
+def test_groom_auto_is_off_by_default():
+    from app.params import BY_KEY
+    from app.presets import resolve_params
+
+    p, _ = resolve_params(str(DATA / "sintel_hair.tfx"))
+    assert not p["fibers.groom_auto"]
+    assert all(p[k] == BY_KEY[k].default for k in AUTO_KEYS)
+
+
+@needs_data
+@pytest.mark.parametrize("name", SHARED)
+def test_groom_auto_fibers_are_a_pixel_or_less_and_fill_the_core(name):
+    """Against the camera itself: at the default camera and 640x360 each fiber is 0.3 .. 1 px wide, or as
+    wide as its ring allows; the core is opaque (about CORE_DEPTH fibers deep along a diameter)."""
+    from app.presets import resolve_params
+    from app.scene.grooms import defaults, scene_from_groom
+
+    p, _ = resolve_params(str(DATA / name), ["fibers.groom_auto=true"])
+    scene = scene_from_groom(p)
+    cam = Camera.from_params(p, scene, aspect=640 / 360)
+    pixel = 2.0 * np.linalg.norm(cam.position - cam.target) * np.tan(np.radians(cam.fov) / 2) / 360
+    R = float(np.median(scene.source.radii))
+    lay = ring_layout(p)
+    width_px = 2.0 * lay.fiber_radius * R / pixel
+    cap = defaults.MAX_RING_FILL * 0.5 / lay.rings
+    assert 2 <= lay.rings <= 10
+    assert 0.3 <= width_px <= 1.0 or (lay.fiber_radius == pytest.approx(cap) and width_px < 1.0), width_px
+    # fibers per unit area in the core (the innermost rings, whole density) times the area a diameter sweeps
+    core = slice(lay.rings // 2, lay.rings)
+    area = 2.0 * np.pi * lay.rho[core] / lay.rings
+    depth = float(lay.n[core].sum() / area.sum()) * 4.0 * lay.fiber_radius
+    assert depth == pytest.approx(defaults.CORE_DEPTH, rel=0.25)
+    if lay.rings >= defaults.EDGE_MIN_RINGS:
+        assert p["fibers.edge_density"] < 1
+
+
+@needs_data
+def test_groom_auto_keeps_what_a_person_set():
+    from app.presets import resolve_params
+
+    auto, _ = resolve_params(str(DATA / "Bangs_100.hair"), ["fibers.groom_auto=true"])
+    p, _ = resolve_params(str(DATA / "Bangs_100.hair"), ["fibers.groom_auto=true", "fibers.rings=4",
+                                                         "fibers.edge_density=0.9"])
+    assert p["fibers.rings"] == 4 and p["fibers.edge_density"] == 0.9
+    assert p["fibers.fiber_radius"] <= 0.5 / 4 and p["fibers.phi_step"] != auto["fibers.phi_step"]
+    assert p["fibers.even_spacing"] == auto["fibers.even_spacing"] == 1.0
+    q, _ = resolve_params(str(DATA / "Bangs_100.hair"), ["fibers.groom_auto=true", "fibers.phi_step=2.5"])
+    assert q["fibers.phi_step"] == 2.5 and q["fibers.rings"] == auto["fibers.rings"]
+
+
+@needs_data
+def test_groom_auto_leaves_a_preset_alone(tmp_path):
+    """A preset lists every key, so all of them are a person's: the groom's defaults change nothing."""
+    from app.presets import resolve_params, save_preset
+
+    values = {"scene.generator": "groom", "scene.groom_file": str(DATA / "Curly_100.ply"), "fibers.groom_auto": True}
+    path = tmp_path / "look.toml"
+    save_preset(path, Params(values), "look")
+    p, _ = resolve_params(str(path))
+    assert p == Params(values)
+
+
+@needs_data
+def test_groom_auto_is_reported_by_info():
+    from app.info import info_lines
+    from app.presets import resolve_params
+    from app.scene.grooms import scene_from_groom
+
+    p, _ = resolve_params(str(DATA / "Ratboy_mohawk.tfx"), ["fibers.groom_auto=true", "fibers.rings=4"])
+    lines = [x for x in info_lines(p, scene_from_groom(p), "x") if x.startswith("groom auto")]
+    assert len(lines) == 1 and "px in radius at the default camera" in lines[0]
+    assert lines[0].endswith("set by you, kept: fibers.rings = 4"), lines[0]
+    p0, _ = resolve_params(str(DATA / "Ratboy_mohawk.tfx"))
+    assert not [x for x in info_lines(p0, scene_from_groom(p0), "x") if x.startswith("groom auto")]
+
+
+@needs_data
+def test_groom_auto_in_the_viewer():
+    from app.presets import resolve_params
+    from app.viewer.state import AppState
+
+    s = AppState()
+    assert s.open_groom(DATA / "Curly_100.ply")
+    assert s.params["fibers.rings"] == 10 and s.params["fibers.phi_step"] == 1.0
+    assert s.edit("fibers.groom_auto", True)
+    want, _ = resolve_params(str(DATA / "Curly_100.ply"), ["fibers.groom_auto=true"])
+    assert all(s.params[k] == want[k] for k in AUTO_KEYS)
+    assert s.edit("fibers.rings", 6) and s.params["fibers.rings"] == 6      # a slider moved afterwards wins
+
+
+@needs_data
+@pytest.mark.parametrize("name", ["sintel_hair.tfx", "Ratboy_mohawk.tfx"])
+def test_groom_auto_exact_equals_brute(renderer, name):
+    from app.presets import resolve_params
+    from app.scene.grooms import scene_from_groom
+
+    p, _ = resolve_params(str(DATA / name), ["fibers.groom_auto=true"])
+    scene = scene_from_groom(p)
+    renderer.set_scene(scene)
+    cam = Camera.from_params(p, scene, aspect=SIZE[0] / SIZE[1])
+    exact = renderer.render(p, cam, SIZE, outputs=("ids", "color", "geom"), mode="exact")
+    brute = renderer.render(p, cam, SIZE, outputs=("ids",), mode="brute")
+    assert exact.hit.mean() > 0.05
+    assert (exact.ids[..., :3] == brute.ids[..., :3]).all()
+    assert np.isfinite(exact.geom).all()

@@ -248,6 +248,7 @@ class AppState:
                 self.errors[error.key] = error.bare
             return False
         new, note = result
+        new = _with_groom_defaults(self.params, new, accepted)
         if note:
             self.notes["fibers.fiber_radius"] = note
             self.pending.pop("fibers.fiber_radius", None)
@@ -555,6 +556,23 @@ def _valid_alone(key: str, value: Any) -> bool:
 
 def _jsonable(v: Any) -> Any:
     return list(v) if isinstance(v, tuple) else v
+
+
+def _with_groom_defaults(old: Params, new: Params, accepted: dict[str, Any]) -> Params:
+    """fibers.groom_auto as the command line applies it (app/scene/grooms/defaults.py): when it is turned on,
+    or the groom changes under it, the fiber sliders take the groom's values, except those this edit sets."""
+    if not (new["fibers.groom_auto"] and new["scene.generator"] == "groom"):
+        return new
+    same = ("scene.generator", "scene.groom_file", "scene.groom_radius_scale", "fibers.groom_auto")
+    if all(old[k] == new[k] for k in same):
+        return new
+    from ..scene.grooms import GroomError
+    from ..scene.grooms.defaults import groom_defaults
+
+    try:
+        return groom_defaults(new, set(accepted) - {"fibers.groom_auto"})[0]
+    except (GroomError, OSError, ParamError):    # the scene's loader reports a bad file; keep the sliders
+        return new
 
 
 def is_groom_path(target: str) -> bool:

@@ -1,0 +1,108 @@
+"""Per-groom fiber defaults (``fibers.groom_auto``): rings, spacing, fiber thickness and a soft clump edge
+chosen from the groom itself, so that each shared groom looks right without hand-tuning.
+
+Two facts of a groom decide them: its container radius R (0.75 x the median root spacing, times
+``scene.groom_radius_scale``: :func:`~.guides.default_radius`) and the size of a pixel at the default
+camera, which frames the whole groom: ``PX_PER_HALF_DIAGONAL`` x half the groom's bounding-box diagonal at
+640x360 (the command line's default size). From R / pixel:
+
+* fiber width: ``FIBER_WIDTH_PX`` at that size, so a fiber is a pixel or less wide (fibers.fiber_radius is a
+  fraction of R), but never more than ``MAX_RING_FILL`` of a ring's width;
+* rings: about one per pixel of container radius, 2 .. 10 (a container one pixel across needs no ten rings);
+* spacing: equal arc length on every ring (even_spacing 1: the same fibers per area from core to rim) and as
+  many fibers as make the core opaque, ``CORE_DEPTH`` fibers deep along a ray through the axis;
+* the clump profile: the outer ``EDGE_WIDTH`` of the radius thins to ``EDGE_DENSITY``, so no container
+  shows a wall and neighbours blend (from ``EDGE_MIN_RINGS`` rings up).
+
+Whatever a person set (a preset's keys, ``--set``) wins: only keys they did not give take these values.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ...params import Params
+
+AUTO_KEYS = ("fibers.rings", "fibers.phi_step", "fibers.phi_increment", "fibers.even_spacing",
+             "fibers.fiber_radius", "fibers.edge_density", "fibers.edge_width")
+PX_PER_HALF_DIAGONAL = 0.0048
+"""A pixel at the default camera and 640x360, over half the groom's bounding-box diagonal: measured 0.0044
+(Curly_100) .. 0.0051 (Ratboy_mohawk) on the five shared grooms (the camera frames the containers, not the
+box, so it varies a little with the shape)."""
+FIBER_WIDTH_PX = 0.5
+MAX_RING_FILL = 0.8            # a fiber's diameter at most this fraction of its ring's width
+CORE_DEPTH = 6.0               # fibers a ray through the axis meets on average: 1 - e^-6 = 99.8% opaque
+MIN_RINGS, MAX_RINGS = 2, 10
+EDGE_DENSITY, EDGE_WIDTH = 0.3, 0.5
+EDGE_MIN_RINGS = 4             # fewer rings are too coarse for a profile: thinning ring 0 of 2 thins 3/4 of the area
+
+
+@dataclass(frozen=True)
+class GroomDefaults:
+    values: dict            # the auto values, every key of AUTO_KEYS
+    applied: dict           # those that were used (the rest were set by a person)
+    radius: float           # R, world units
+    pixel: float            # the pixel's size at the default camera and 640x360, world units
+    reason: str
+
+
+def auto_fibers(radius: float, pixel: float, rings: int | None = None, fiber_radius: float | None = None) -> dict:
+    """The fiber parameters for containers of radius ``radius`` seen at ``pixel`` world units a pixel;
+    ``rings`` or ``fiber_radius`` given (a person's) are kept, and the rest follow from them."""
+    ratio = radius / pixel
+    if rings is None:
+        rings = int(np.clip(round(ratio), MIN_RINGS, MAX_RINGS))
+    if fiber_radius is None:
+        fiber_radius = min(0.5 * FIBER_WIDTH_PX / ratio, MAX_RING_FILL * 0.5 / rings)
+    if fiber_radius <= 0:
+        return {"fibers.rings": rings, "fibers.fiber_radius": fiber_radius}   # no fibers: nothing to space
+    # per unit area of the unit disc: a ray along a diameter (length 2) sweeps 2 * (2 r) of area
+    per_area = CORE_DEPTH / (4.0 * fiber_radius)
+    # with even spacing ring i holds 360 rho_i / (phi_step rho_0) fibers on an annulus of area 2 pi rho_i / K
+    rho0 = 1.0 - 0.5 / rings
+    phi_step = float(np.clip(360.0 * rings / (2.0 * math.pi * rho0 * per_area), 0.01, 180.0))
+    return {"fibers.rings": rings, "fibers.phi_step": round(phi_step, 4), "fibers.phi_increment": 0.0,
+            "fibers.even_spacing": 1.0, "fibers.fiber_radius": round(fiber_radius, 6),
+            "fibers.edge_density": EDGE_DENSITY if rings >= EDGE_MIN_RINGS else 1.0, "fibers.edge_width": EDGE_WIDTH}
+
+
+def groom_defaults(p: Params, given: set[str] | frozenset[str] = frozenset()) -> tuple[Params, GroomDefaults]:
+    """``p`` with the per-groom fiber defaults in every key of :data:`AUTO_KEYS` not in ``given``."""
+    from .guides import strands_to_guides
+    from .load import load_groom
+
+    groom = load_groom(p["scene.groom_file"], up=p["scene.groom_up"], scale=p["scene.groom_scale"])
+    # the root-spacing radius exactly as the scene's build finds it (build.groom_scene)
+    radius = float(strands_to_guides(groom, 1, seed=p["scene.seed"]).radii[0]) * p["scene.groom_radius_scale"]
+    lo, hi = groom.bbox()
+    pixel = max(PX_PER_HALF_DIAGONAL * 0.5 * float(np.linalg.norm(hi - lo)), 1e-30)
+    values = auto_fibers(radius, pixel, p["fibers.rings"] if "fibers.rings" in given else None,
+                         p["fibers.fiber_radius"] if "fibers.fiber_radius" in given else None)
+    applied = {k: v for k, v in values.items() if k not in given}
+    reason = (f"containers {radius / pixel:.2f} px in radius at the default camera (640x360): fibers "
+              f"{2 * values['fibers.fiber_radius'] * radius / pixel:.2f} px wide, {values['fibers.rings']} rings, "
+              f"{CORE_DEPTH:g} fibers deep through the core, the outer {values['fibers.edge_width']:g} of the "
+              f"radius at {values['fibers.edge_density']:g} of the core's density")
+    out = p.replace(**applied)
+    return out, GroomDefaults(values, applied, radius, pixel, reason)
+
+
+def auto_report(p: Params) -> str | None:
+    """For ``vfiber info``: what ``fibers.groom_auto`` chose for this groom and which of it ``p`` carries
+    (a value that differs was set by a person and won). None when it is off or not a groom."""
+    if not (p["fibers.groom_auto"] and p["scene.generator"] == "groom"):
+        return None
+    _, d = groom_defaults(p)
+    # rings and fiber radius decide the rest: a person's value there is taken as given, then compared
+    primary: set[str] = set()
+    for key in ("fibers.rings", "fibers.fiber_radius"):     # the fiber radius follows the rings: in order
+        if p[key] != d.values[key]:
+            primary.add(key)
+            _, d = groom_defaults(p, primary)
+    kept = sorted(primary | {k for k, v in d.values.items() if p[k] != v}, key=AUTO_KEYS.index)
+    chosen = ", ".join(f"{k.split('.', 1)[1]} {v:g}" for k, v in d.values.items() if k not in kept)
+    text = f"{chosen or 'nothing'}: {d.reason}"
+    return text + (f"; set by you, kept: {', '.join(f'{k} = {p[k]:g}' for k in kept)}" if kept else "")
