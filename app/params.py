@@ -150,6 +150,8 @@ SPEC: tuple[Param, ...] = (
       0.02, 1.0),
     P("fibers.edge_width", float, 0.5, "clump profile: how far in from the edge the density thins, as a "
       "fraction of the container radius (fibers.edge_density)", 0.05, 1.0),
+    P("fibers.edge_thickness", float, 1.0, "clump profile: fiber thickness on the outermost ring as a "
+      "fraction of fibers.fiber_radius; it thins over fibers.edge_width as the density does", 0.05, 1.0),
     P("fibers.fiber_radius", float, 0.01, "fiber radius as a fraction of the container radius; at most "
       "0.5 / rings so a fiber fits its ring", 0.0, 0.5),
     P("fibers.radial_jitter", float, 0.5, "radial offset as a fraction of the most that keeps the fiber in "

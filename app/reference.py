@@ -271,13 +271,16 @@ def brute_nearest(scene: Scene, p: Params, ro: np.ndarray, rd: np.ndarray, t_nea
         for a in range(0, len(live), step):
             sel = live[a:a + step]
             O, D = ur.O[sel], ur.D[sel]
-            c0, c1 = circle_interval(O[:, :1], O[:, 1:2], D[:, :1], D[:, 1:2], cx[None], cy[None], rf)
+            # each fiber at its ring's radius (the clump profile thins the outer rings': ring_radius)
+            c0, c1 = circle_interval(O[:, :1], O[:, 1:2], D[:, :1], D[:, 1:2], cx[None], cy[None],
+                                     lay.ring_radius[ring][None])
             z0, z1 = _slab(O[:, 2:3], D[:, 2:3], -np.inf, zc[None])
             s_in = np.maximum(np.maximum(c0, z0), ur.s0[sel, None])
             s_out = np.minimum(np.minimum(c1, z1), ur.s1[sel, None])
             if taper.on:
+                rr = lay.ring_radius[ring][None]             # each fiber's ring's radius
                 k0, k1 = cone_interval(O[:, :1], O[:, 1:2], D[:, :1], D[:, 1:2], cx[None], cy[None],
-                                       rf * (l0[None] + l1[None] * O[:, 2:3]), rf * l1[None] * D[:, 2:3])
+                                       rr * (l0[None] + l1[None] * O[:, 2:3]), rr * l1[None] * D[:, 2:3])
                 s_in, s_out = np.maximum(s_in, k0), np.minimum(s_out, k1)
             s_in = np.where(s_in <= s_out, s_in, np.inf)
             best = np.argmin(s_in, axis=1)
@@ -389,11 +392,13 @@ def segment_bands(sh: Shape, seg: Segment) -> tuple[float, float]:
     return min(ea, eb), e_hi
 
 
-def piece_entry(sh, lay, seg, O, D, P0, P1, s_a, s_b, rest_x, rest_y, phase, v_end, taper: Taper | None = None):
+def piece_entry(sh, lay, seg, O, D, P0, P1, s_a, s_b, rest_x, rest_y, phase, v_end, taper: Taper | None = None,
+                ring: int = 0):
     """Entry parameter of each (ray, fiber) pair over the chord piece [s_a, s_b] (curved.glsl: piece_entry):
     the ray seen from the fiber runs from P0.xy - c'(P0) to P1.xy - c'(P1) on a line. inf on a miss.
     A tapered fiber's width is linear in the ray's unit-space height, so along the piece it is linear in s
-    too: the cone of ``cone_interval`` about the moving centre."""
+    too: the cone of ``cone_interval`` about the moving centre. The fibers are ring ``ring``'s, at its
+    radius (``lay.ring_radius``)."""
     zc = z_cut_unit(seg, v_end)
     tapering = taper is not None and taper.on
     if tapering:
@@ -409,9 +414,9 @@ def piece_entry(sh, lay, seg, O, D, P0, P1, s_a, s_b, rest_x, rest_y, phase, v_e
     safe = np.where(length > 0, length, 1.0)
     dqx = np.where(length > 0, (q1x - q0x) / safe, 0.0)
     dqy = np.where(length > 0, (q1y - q0y) / safe, 0.0)
-    e0, e1 = circle_interval(q0x, q0y, dqx, dqy, 0.0, 0.0, lay.fiber_radius)
+    rf = lay.ring_radius[ring]
+    e0, e1 = circle_interval(q0x, q0y, dqx, dqy, 0.0, 0.0, rf)
     if tapering:
-        rf = lay.fiber_radius
         k0, k1 = cone_interval(q0x, q0y, dqx, dqy, 0.0, 0.0, rf * (l0 + l1 * (O[..., 2] + s_a * D[..., 2])),
                                rf * l1 * D[..., 2])
         e0, e1 = np.maximum(e0, k0), np.minimum(e1, k1)
@@ -493,7 +498,7 @@ def shaped_nearest_segment(sh: Shape, lay: RingLayout, seg: Segment, ur: UnitRay
                     col = lambda x: x[:, None]  # noqa: E731
                     hit = piece_entry(sh, lay, seg, Or[:, None, :], Dr[:, None, :], tuple(map(col, P0)),
                                       tuple(map(col, P1)), col(s_k), col(s_k1), rest_x[None], rest_y[None],
-                                      phase[None], v_end[None], taper)
+                                      phase[None], v_end[None], taper, i)
                     s = np.where(col(k < n), np.minimum(s, hit), s)
                     P0, s_k = P1, s_k1
                 k = np.argmin(s, axis=1)

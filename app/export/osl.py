@@ -75,7 +75,7 @@ FORMAT_VERSION = 1
 EXPORTED_KEYS: tuple[str, ...] = (
     "scene.radius", "scene.length", "scene.taper",
     "fibers.rings", "fibers.phi_step", "fibers.phi_increment", "fibers.even_spacing", "fibers.edge_density",
-    "fibers.edge_width", "fibers.fiber_radius",
+    "fibers.edge_width", "fibers.edge_thickness", "fibers.fiber_radius",
     "fibers.radial_jitter", "fibers.angular_jitter", "fibers.length_jitter", "fibers.hash", "fibers.seed",
     "strand.tip_width", "strand.taper_start",
     "shape.ellipsoid", "shape.curl_amplitude", "shape.curl_frequency", "shape.curl_pattern", "shape.frizz",

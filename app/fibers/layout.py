@@ -31,7 +31,8 @@ class RingLayout:
     max_dr: np.ndarray     # largest radial offset actually used (jitter already applied)
     max_dphi: np.ndarray   # largest angular offset actually used
     reach: np.ndarray      # angular reach of a fiber about its slot angle: max_dphi + disc half-angle
-    fiber_radius: float
+    ring_radius: np.ndarray  # fiber radius on each ring (the clump profile's edge_thickness; unit space)
+    fiber_radius: float    # the core's, the largest of ring_radius: what bounds a traversal's windows
     length_jitter: float
     thesis_hash: bool
     seed: int
@@ -50,7 +51,7 @@ class RingLayout:
 # it is computed once per distinct set and shared, its arrays read-only.
 LAYOUT_KEYS = ("fibers.rings", "fibers.phi_step", "fibers.phi_increment", "fibers.even_spacing", "fibers.hash",
                "fibers.seed", "fibers.fiber_radius", "fibers.radial_jitter", "fibers.angular_jitter",
-               "fibers.length_jitter", "fibers.edge_density", "fibers.edge_width")
+               "fibers.length_jitter", "fibers.edge_density", "fibers.edge_width", "fibers.edge_thickness")
 
 
 def ring_layout(p: Params) -> RingLayout:
@@ -61,9 +62,18 @@ def ring_layout(p: Params) -> RingLayout:
 def _ring_layout(values: tuple) -> RingLayout:
     p = dict(zip(LAYOUT_KEYS, values))
     lay = _compute_ring_layout(p)
-    for arr in (lay.rho, lay.n, lay.dphi, lay.rot, lay.max_dr, lay.max_dphi, lay.reach):
+    for arr in (lay.rho, lay.n, lay.dphi, lay.rot, lay.max_dr, lay.max_dphi, lay.reach, lay.ring_radius):
         arr.setflags(write=False)
     return lay
+
+
+def edge_ramp(p, rings: int) -> np.ndarray:
+    """Per ring, how far the clump profile has come: 1 on the outermost ring, 0 on every ring whose outer
+    boundary 1 - i/K lies edge_width or more inside the edge, linear between."""
+    # (1 - outer) / width from the ring index, so the outermost ring's ramp is exactly 1 (and the OSL's,
+    # which computes the same in float32: osl/fibers/layout.osl: vf_ring)
+    inset = np.arange(rings, dtype=np.float64) / rings
+    return np.clip(1.0 - inset / p["fibers.edge_width"], 0.0, 1.0)
 
 
 def edge_profile(p, rho: np.ndarray) -> np.ndarray:
@@ -72,11 +82,7 @@ def edge_profile(p, rho: np.ndarray) -> np.ndarray:
     It falls linearly with the ring's outer boundary 1 - i/K over the outer edge_width of the radius, so
     the outermost ring (boundary 1) gets edge_density exactly and a ring whose boundary is 1 - edge_width
     or less gets 1. With the default edge_density 1 every factor is exactly 1.0 (today's layout)."""
-    # (1 - outer) / width from the ring index, so the outermost ring's ramp is exactly 1 (and the OSL's,
-    # which computes the same in float32: osl/fibers/layout.osl: vf_ring)
-    inset = np.arange(len(rho), dtype=np.float64) / len(rho)
-    ramp = np.clip(1.0 - inset / p["fibers.edge_width"], 0.0, 1.0)
-    return 1.0 - (1.0 - p["fibers.edge_density"]) * ramp
+    return 1.0 - (1.0 - p["fibers.edge_density"]) * edge_ramp(p, len(rho))
 
 
 def ring_step_deg(p, rho: np.ndarray) -> np.ndarray:
@@ -100,15 +106,17 @@ def _compute_ring_layout(p: dict) -> RingLayout:
     seed = p["fibers.seed"]
     rot = np.zeros(K) if thesis else fiber_random(seed, 0, np.arange(K), 0, CH_RING) * dphi
     rf = p["fibers.fiber_radius"]
-    max_dr = np.full(K, max(0.0, half_width - rf) * p["fibers.radial_jitter"])
+    # the clump profile thins the outer rings' fibers as it thins their number (1.0 exactly by default)
+    ring_rf = rf * (1.0 - (1.0 - p["fibers.edge_thickness"]) * edge_ramp(p, K))
+    max_dr = np.maximum(0.0, half_width - ring_rf) * p["fibers.radial_jitter"]
     rho_min = rho - max_dr
     # half the angle a fiber's disc covers seen from the axis; a disc that reaches the axis covers half the
     # turn. rho_min is 0 on the innermost ring at full radial jitter: rf / 0 would be nan for rf = 0
     with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.where(rho_min > rf, rf / rho_min, 1.0) if rf > 0 else np.zeros(K)
+        ratio = np.where(rho_min > ring_rf, ring_rf / rho_min, 1.0) if rf > 0 else np.zeros(K)
     disc_half_angle = np.arcsin(ratio)
     max_dphi = np.maximum(0.0, 0.5 * dphi - disc_half_angle) * p["fibers.angular_jitter"]
-    return RingLayout(K, rho, n, dphi, rot, max_dr, max_dphi, max_dphi + disc_half_angle, rf,
+    return RingLayout(K, rho, n, dphi, rot, max_dr, max_dphi, max_dphi + disc_half_angle, ring_rf, rf,
                       p["fibers.length_jitter"], thesis, seed)
 
 

@@ -403,6 +403,8 @@ class ExplicitRenderer:
         lay = fibers.ring_layout(p)
         ring_first = np.zeros(MAX_RINGS, np.int32)
         ring_first[:lay.rings] = lay.first
+        ring_radius = np.zeros(MAX_RINGS, np.float32)
+        ring_radius[:lay.rings] = lay.ring_radius          # the clump profile's fiber radius by ring
         w, h = size
         clip = cam.clip_from_camera(w / h).astype(np.float64)
         # a sub-pixel ray offset moves the image the other way: shift NDC by -2 offset / size
@@ -421,12 +423,15 @@ class ExplicitRenderer:
         }
         if self._key[0] == "fibers made elsewhere":   # set_fibers: one "ring", the uploaded count and radius
             ring_first[:] = 0
+            ring_radius[:] = self._key[1]
             values.update(uRings=1, uFibersPerContainer=self.plan.fibers_per_container, uFiberRadius=self._key[1])
         for name, value in values.items():
             if name in prog:
                 prog[name].value = value
         if "uRingFirst" in prog:
             prog["uRingFirst"].write(ring_first[:prog["uRingFirst"].array_length].tobytes())
+        if "uRingRadius" in prog:
+            prog["uRingRadius"].write(ring_radius[:prog["uRingRadius"].array_length].tobytes())
         prog["uClipFromCamera"].write(clip.T.copy().tobytes())
 
     def render(self, p: Params, cam: Camera, size: tuple[int, int], *, outputs=("color", "ids"),

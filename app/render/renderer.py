@@ -597,7 +597,9 @@ def ring_uniforms(lay: fibers.RingLayout) -> dict[str, np.ndarray]:
     after = np.floor(2.0 * (lay.reach + EPS_ANGLE) / lay.dphi * (1.0 + 1e-6)) + 1.0
     ring_b[:K] = np.stack([lay.max_dr, lay.max_dphi, 1.0 / lay.dphi, after], 1)
     ring_n[:K, 0], ring_n[:K, 1] = lay.n, lay.first
-    return {"uRingA": ring_a, "uRingB": ring_b, "uRingN": ring_n}
+    ring_radius = np.zeros(MAX_RINGS, np.float32)
+    ring_radius[:K] = lay.ring_radius            # the clump profile's fiber radius by ring
+    return {"uRingA": ring_a, "uRingB": ring_b, "uRingN": ring_n, "uRingRadius": ring_radius}
 
 
 def traversals_per_fragment(p: Params, mode: str) -> int:

@@ -29,12 +29,12 @@ flat in uvec4 vId;
 flat in vec3 vLook;
 in float vV;                    // guide parameter at this point of the ribbon
 flat in float vTilt;            // the fiber's radius falls this much per unit length (its tapered tip)
+flat in float vFiberRadius;     // the fiber's ring's radius (ribbon.vert)
 
 uniform float uRoughness;
 uniform float uRoughnessVariation;
 uniform float uShadowDensity;
 uniform float uFiberDensity;    // fiber cross-section per unit length of a light path, unit space
-uniform float uFiberRadius;
 
 #ifndef SHADOW_MODE
 #define SHADOW_MODE 1
@@ -93,7 +93,7 @@ void main() {
     vec3 direct = shade_kajiya_kay(T, N, V, L, color, roughness);
 #endif
     // shade the point of the round fiber's surface that this pixel sees, not the ribbon's axis
-    float through = light_through(uFiberRadius * vRadius * N, L);
+    float through = light_through(vFiberRadius * vRadius * N, L);
     vec3 radiance = uLightIntensity * through * direct + ambient_fill(N, color, occlusion);
     outColor = vec4(tone_map(radiance), 1.0);
     outId = vId;

@@ -30,7 +30,7 @@ in float aFiberEnd;             // v_end: where along its guide the fiber ends
 uniform vec3 uSceneFromCamera;  // scene origin minus camera position
 uniform mat4 uClipFromCamera;   // projection * view rotation (camera at the origin)
 uniform int uFibersPerContainer;
-uniform float uFiberRadius;     // fraction of the container radius
+uniform float uRingRadius[MAX_RINGS];   // fiber radius by ring, a fraction of the container radius
 
 out vec3 vPos;                  // camera-relative position on the ribbon
 out vec3 vTangent;              // the fiber's direction, as the ribbon runs
@@ -44,8 +44,13 @@ flat out uvec4 vId;             // guide + 1, ring, fiber, segment row
 flat out vec3 vLook;            // tint, roughness (0 .. 1), |c|
 out float vV;                   // guide parameter (0 root .. 1 tip): the colour along the strand
 flat out float vTilt;           // how fast the radius falls along the fiber (its cone; 0 on the root part)
+flat out float vFiberRadius;    // the fiber's ring's radius (the clump profile thins the outer rings')
 
 void main() {
+    int row = gl_InstanceID / uFibersPerContainer;
+    int inContainer = gl_InstanceID - row * uFibersPerContainer;
+    int ring = ring_of(inContainer);
+    vFiberRadius = uRingRadius[ring];
     int pair = gl_VertexID >> 1;
     vec3 axis = aRowB.xyz - aRowA.xyz;
     float h = length(axis);
@@ -67,7 +72,7 @@ void main() {
     width = clamp(line.x + line.y * zt / (r0 + kappa * zt), 0.0, 1.0);
     // the cone's radius fiber_radius (l0 w + l1 z) falls by fiber_radius (l0 kappa + l1) per unit height;
     // per unit length along the fiber, |dP/dz| = |ez + kappa d|. Flat: the second quad's last vertices.
-    vTilt = pair == 2 ? -uFiberRadius * (line.x * kappa + line.y) / length(axis / h + kappa * aFiber.xyz) : 0.0;
+    vTilt = pair == 2 ? -vFiberRadius * (line.x * kappa + line.y) / length(axis / h + kappa * aFiber.xyz) : 0.0;
 #else
     float t = pair == 0 ? aFiber.w : aEnd;
 #endif
@@ -78,7 +83,7 @@ void main() {
     vec3 T = normalize(aRowB.xyz - aRowA.xyz + (aRowB.w - aRowA.w) * d);     // dP/dt
     vec3 across = cross(T, -pCam);
     float al = length(across);
-    float halfWidth = al > 0.0 ? uFiberRadius * w * width / al : 0.0;
+    float halfWidth = al > 0.0 ? vFiberRadius * w * width / al : 0.0;
 
     vAxis = vec4(axis / h, h);
     vEnds = vec2(aRowC.w <= 0.0 ? 1.0 : 0.0, aRowD.w >= 1.0 ? 1.0 : 0.0);
@@ -91,9 +96,6 @@ void main() {
     vPos = pCam + side * halfWidth * across;
     vTangent = T;
     vAcross = side;
-    int row = gl_InstanceID / uFibersPerContainer;
-    int inContainer = gl_InstanceID - row * uFibersPerContainer;
-    int ring = ring_of(inContainer);
     vId = uvec4(uint(aGuide) + 1u, uint(ring), uint(inContainer - uRingFirst[ring]), uint(row));
     vLook = vec3(float(aLook & 0xffu) / 255.0, float(aLook >> 8) / 255.0, length(d));
     gl_Position = uClipFromCamera * vec4(vPos, 1.0);

@@ -83,12 +83,12 @@ float piece_entry(Segment seg, FiberRay fr, RingPoint P0, RingPoint P1, float in
     q1 -= frizz_offset(fz, P1.v);
 #endif
     vec2 dq = (q1 - q0) * invLen;
-    vec2 e = circle_interval(q0, dq, vec2(0.0), uFiberRadius);
+    vec2 e = circle_interval(q0, dq, vec2(0.0), fr.rf);          // the ring's fiber radius (fiber_ray_ring)
 #if TAPER
     // the tapered part: a cone about the moving centre, its radius linear along the piece as in height
     vec2 line = taper_line(fr.ts, vEnd);
-    float rho0 = uFiberRadius * (line.x + line.y * (fr.oz + P0.s * fr.dz));
-    vec2 cone = cone_interval(q0, dq, rho0, uFiberRadius * line.y * fr.dz);
+    float rho0 = fr.rf * (line.x + line.y * (fr.oz + P0.s * fr.dz));
+    vec2 cone = cone_interval(q0, dq, rho0, fr.rf * line.y * fr.dz);
     float sIn = max(max(P0.s + e.x, P0.s + cone.x), lo);
     float sOut = min(min(P0.s + e.y, P0.s + cone.y), hi);
     kind = sIn == P0.s + e.x ? 0 : (sIn == P0.s + cone.x ? 3 : (sIn == zs.x ? 1 : 2));

@@ -1,6 +1,7 @@
 // fiber_entry.glsl: one ray against one straight fiber of a container.
 //   FiberRay fiber_ray(Segment seg, UnitRay ur)      what every fiber test of one ray shares
 //   float    fiber_entry(Segment seg, FiberRay fr, vec2 c, float vEnd, out int kind)   entry s or INF
+//   FiberRay fiber_ray_ring(FiberRay fr, int i)       the same for the fibers of ring i (their radius)
 
 #include "common/epsilon.glsl"
 #include "geometry/container.glsl"
@@ -28,6 +29,7 @@ struct FiberRay {
     float sa;       // |D.xy|
     TaperSeg ts;    // what the fibers' width lines share (taper.glsl)
 #endif
+    float rf;       // fiber radius (fiber_ray_ring: the ring's)
 };
 
 FiberRay fiber_ray(Segment seg, UnitRay ur) {
@@ -48,6 +50,7 @@ FiberRay fiber_ray(Segment seg, UnitRay ur) {
     fr.sa = sqrt(a);
     fr.ts = taper_seg(seg.v0, seg.v1, fr.zScale, seg.r0, seg.kappa);
 #endif
+    fr.rf = uFiberRadius;
     return fr;
 }
 
@@ -77,11 +80,11 @@ float fiber_entry(Segment seg, FiberRay fr, vec2 c, float vEnd, out int kind) {
     // the radius is linear in the height, so along the ray too: rho0 + rho1 s; the cone's terms from the
     // cylinder's (taper.glsl: cone_interval)
     vec2 line = taper_line(fr.ts, vEnd);
-    float rho0 = uFiberRadius * (line.x + line.y * fr.oz);
-    float rho1 = uFiberRadius * line.y * fr.dz;
+    float rho0 = fr.rf * (line.x + line.y * fr.oz);      // fr.rf: the ring's radius (fiber_ray_ring)
+    float rho1 = fr.rf * line.y * fr.dz;
     float ar = abs(rho1);
     float m = length(rho0 * fr.d2 - rho1 * oc);
-    vec2 cone = cone_roots((fr.sa - ar) * (fr.sa + ar), b - rho0 * rho1, cc + (uFiberRadius - rho0) * (uFiberRadius + rho0),
+    vec2 cone = cone_roots((fr.sa - ar) * (fr.sa + ar), b - rho0 * rho1, cc + (fr.rf - rho0) * (fr.rf + rho0),
                            (m - crs) * (m + crs), rho0, rho1);
     float sIn = max(max(max(cyl.x, cone.x), zr.x), fr.s0);
     float sOut = min(min(min(cyl.y, cone.y), zr.y), fr.s1);
@@ -93,6 +96,17 @@ float fiber_entry(Segment seg, FiberRay fr, vec2 c, float vEnd, out int kind) {
 #endif
     bool hit = disc >= 0.0 && sIn <= sOut && vEnd > seg.v0;
     return hit ? sIn : INF;
+}
+
+// The fiber terms of a ray for the fibers of ring i, whose radius the clump profile may thin
+// (app/fibers/layout.py: RingLayout.ring_radius); the same expressions as fiber_ray, so a ring at the
+// core's radius gives the same bits.
+FiberRay fiber_ray_ring(FiberRay fr, int i) {
+    float r = uRingRadius[i];
+    fr.ra = sqrt(dot(fr.d2, fr.d2)) * r;
+    fr.rf2 = r * r;
+    fr.rf = r;
+    return fr;
 }
 
 #endif

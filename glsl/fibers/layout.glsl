@@ -24,7 +24,8 @@ uniform int uRings;
 uniform vec4 uRingA[MAX_RINGS];    // rho, dphi, rot, reach (largest angular offset + disc half-angle)
 uniform vec4 uRingB[MAX_RINGS];    // maxDr, maxDphi, 1 / dphi, candidates past a hit (renderer.py: ring_uniforms)
 uniform ivec2 uRingN[MAX_RINGS];   // fibers on the ring, index of its first fiber in the container
-uniform float uFiberRadius;
+uniform float uFiberRadius;      // the core's fiber radius, the largest: what bounds the windows
+uniform float uRingRadius[MAX_RINGS];   // each ring's (the clump profile thins the outer rings' fibers)
 uniform float uLengthJitter;
 uniform uint uSeed;
 

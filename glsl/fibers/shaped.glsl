@@ -163,6 +163,7 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
         vec4 ring = uRingA[i];
         vec4 ringB = uRingB[i];
         uint ringKey = ring_key(uSeed, seg.guide, i);
+        FiberRay fri = fiber_ray_ring(fr, i);           // this ring's fiber radius
         int n = uRingN[i].x;
         bool found = false;
         for (int k = 0; k < pieces; k++) {
@@ -206,7 +207,7 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
                 fiber_center_keyed(ring, ringB, ringKey, i, j, rest, vEnd);
                 float phase = shaped_curl_phase(ringKey, i, j);
                 int kind;
-                float s = piece_entry(seg, fr, P0, P1, invLen, curlStep, rest, phase, vEnd, kind);
+                float s = piece_entry(seg, fri, P0, P1, invLen, curlStep, rest, phase, vEnd, kind);
                 s = i == gSkipRing && j == gSkipFiber ? INF : s;
                 bool better = beats(s, i, j, best.s, best.ring, best.fiber);
                 best.s = better ? s : best.s;

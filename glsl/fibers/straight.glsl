@@ -91,6 +91,7 @@ FiberHit traverse_straight(Segment seg, UnitRay ur) {
         int after = int(ringB.w);
         int end = open ? run0.y + run1.y : 0;
         uint ringKey = ring_key(uSeed, seg.guide, i);
+        FiberRay fri = fiber_ray_ring(fr, i);           // this ring's fiber radius
         int bestJ = -1;
         float bestS = best.s;
         vec2 bestC = vec2(0.0);
@@ -103,7 +104,7 @@ FiberHit traverse_straight(Segment seg, UnitRay ur) {
             float vEnd;
             fiber_center_keyed(ring, ringB, ringKey, i, j, c, vEnd);
             int kind;
-            float s = fiber_entry(seg, fr, c, vEnd, kind);
+            float s = fiber_entry(seg, fri, c, vEnd, kind);
             if (i == gSkipRing && j == gSkipFiber) s = INF;
             // the best so far: this arc's, or the earlier arcs' (ties as brute force breaks them)
             bool mine = bestJ >= 0;

@@ -64,9 +64,10 @@ FiberHit traverse_fibers(Segment seg, UnitRay ur) {
         ivec2 nf = uRingN[i];
         int jBegin = max(0, uBruteRange.x - nf.y);
         int jEnd = min(nf.x, uBruteRange.y - nf.y);
+        FiberRay fri = fiber_ray_ring(fr, i);           // this ring's fiber radius
         for (int j = jBegin; j < jEnd; j++) {
             gIters++;
-            test_fiber(seg, fr, i, j, best);
+            test_fiber(seg, fri, i, j, best);
         }
     }
     return best;

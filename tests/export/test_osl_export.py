@@ -317,6 +317,7 @@ def test_ring_layout_in_cycles_matches_reference(cycles, tmp_path):
     fields = {"rings": ("int", "fibers.rings"), "phiStep": ("float", "fibers.phi_step"),
               "phiIncrement": ("float", "fibers.phi_increment"), "evenSpacing": ("float", "fibers.even_spacing"),
               "edgeDensity": ("float", "fibers.edge_density"), "edgeWidth": ("float", "fibers.edge_width"),
+              "edgeThickness": ("float", "fibers.edge_thickness"),
               "fiberRadius": ("float", "fibers.fiber_radius"), "radialJitter": ("float", "fibers.radial_jitter"),
               "angularJitter": ("float", "fibers.angular_jitter"), "seed": ("int", "fibers.seed")}
     arrays = {f"a_{f}": (t, [repr(float(looks[li][1][key])) if t == "float" else int(looks[li][1][key])

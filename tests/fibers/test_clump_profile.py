@@ -8,8 +8,6 @@ vf_ring) and is held to the float64 layout in Cycles below.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
@@ -19,13 +17,13 @@ from app.params import ParamError, Params
 from app.render.camera import Camera
 from app.render.explicit import ExplicitRenderer, compare_frames, fiber_centers
 from app.scene.containers import Scene
-from tests.helpers import gpu_ids, reference_ids, setup
+from tests.support.ids import gpu_ids, reference_ids, setup
+from tests.support.paths import HAIR_DATA
 
-ROOT = Path(__file__).resolve().parents[1]
-DATA = ROOT.parent / "shared" / "hair-data"
+DATA = HAIR_DATA
 needs_data = pytest.mark.skipif(not DATA.is_dir(), reason=f"shared hair data not found at {DATA}")
 SIZE = (160, 96)
-PROFILE = {"fibers.edge_density": 0.25, "fibers.edge_width": 0.6}
+PROFILE = {"fibers.edge_density": 0.25, "fibers.edge_width": 0.6, "fibers.edge_thickness": 0.4}
 
 
 # --------------------------------------------------------------------------------------------------
@@ -89,17 +87,36 @@ def test_profile_layout_is_finite_and_fibers_stay_in_their_slots(rings, density,
     still bounds it), even on a ring left with one fiber."""
     p = Params({"fibers.rings": rings, "fibers.fiber_radius": 0.5 / rings, "fibers.radial_jitter": 1.0,
                 "fibers.angular_jitter": 1.0, "fibers.edge_density": density, "fibers.edge_width": width,
-                "fibers.phi_step": 20.0})
+                "fibers.edge_thickness": max(density, 0.05), "fibers.phi_step": 20.0})
     lay = ring_layout(p)
     for name in ("rho", "dphi", "rot", "max_dr", "max_dphi", "reach"):
         assert np.isfinite(getattr(lay, name)).all(), name
     ring, j, cx, cy, _ = reference.all_fibers(lay, 3)
     r = np.hypot(cx, cy)
     half = 0.5 / rings
-    assert (np.abs(r - lay.rho[ring]) <= half - lay.fiber_radius + 1e-12).all()
+    assert (np.abs(r - lay.rho[ring]) <= half - lay.ring_radius[ring] + 1e-12).all()
     slot = lay.rot[ring] + j * lay.dphi[ring]
     off = np.angle(np.exp(1j * (np.arctan2(cy, cx) - slot)))
     assert (np.abs(off) <= lay.max_dphi[ring] + 1e-9).all()
+
+
+@pytest.mark.parametrize("rings", [1, 3, 10, 64])
+@pytest.mark.parametrize("thickness,width", [(0.4, 0.6), (0.05, 0.05), (0.05, 1.0), (1.0, 0.5)])
+def test_profile_thins_the_outer_fibers(rings, thickness, width):
+    """The outermost ring's fibers are edge_thickness of fiber_radius, the core's fiber_radius, linear in
+    the ring's outer boundary between; the ring's jitter and reach follow its own radius."""
+    rf = 0.4 / rings
+    p = Params({"fibers.rings": rings, "fibers.fiber_radius": rf, "fibers.edge_thickness": thickness,
+                "fibers.edge_width": width, "fibers.radial_jitter": 1.0})
+    lay = ring_layout(p)
+    ramp = np.clip(1.0 - (np.arange(rings) / rings) / width, 0.0, 1.0)
+    want = rf * (1.0 - (1.0 - thickness) * ramp)
+    np.testing.assert_allclose(lay.ring_radius, want, rtol=1e-12)
+    assert lay.ring_radius[0] == pytest.approx(rf * thickness) and lay.fiber_radius == rf
+    np.testing.assert_allclose(lay.max_dr, 0.5 / rings - lay.ring_radius, rtol=1e-12)
+    assert (lay.reach >= lay.max_dphi).all() and np.isfinite(lay.reach).all()
+    if thickness == 1.0:
+        assert (lay.ring_radius == rf).all(), "the default thickness keeps every fiber at fiber_radius"
 
 
 def test_profile_range_is_checked():
@@ -107,16 +124,20 @@ def test_profile_range_is_checked():
         Params({"fibers.edge_density": 0.0})
     with pytest.raises(ParamError, match="fibers.edge_width"):
         Params({"fibers.edge_width": 0.0})
+    with pytest.raises(ParamError, match="fibers.edge_thickness"):
+        Params({"fibers.edge_thickness": 0.0})
 
 
 # --------------------------------------------------------------------------------------------------
 # The GLSL twin (the per-ring uniforms), against the reference and brute force
 # --------------------------------------------------------------------------------------------------
-def test_profile_changes_the_image(renderer):
-    base = {"scene.count": 8, "scene.segments": 3, "fibers.phi_step": 3.0}
+@pytest.mark.parametrize("change", [PROFILE, {"fibers.edge_density": 0.3}, {"fibers.edge_thickness": 0.3}],
+                         ids=["all", "density", "thickness"])
+def test_profile_changes_the_image(renderer, change):
+    base = {"scene.count": 8, "scene.segments": 3, "fibers.phi_step": 3.0, "fibers.fiber_radius": 0.03}
     p, scene, cam = setup(renderer, base)
     before = renderer.render(p, cam, SIZE).color
-    p2, _, cam2 = setup(renderer, {**base, **PROFILE})
+    p2, _, cam2 = setup(renderer, {**base, **change})
     after = renderer.render(p2, cam2, SIZE).color
     changed = np.any(before != after, -1).mean()
     assert changed > 0.01, f"the profile changed only {changed:.4%} of the pixels"
@@ -131,7 +152,15 @@ PROFILE_SCENES = [
     ("tapered-bent", {"scene.count": 6, "scene.segments": 4, "scene.bend": 70.0, "scene.taper": 0.6,
                       "fibers.edge_density": 0.1, "fibers.edge_width": 0.05}, {"azimuth": 100.0}),
     ("grazing", {"scene.generator": "single", "scene.radius": 1.0, "scene.length": 1.0, "fibers.length_jitter": 0.0,
-                 "fibers.edge_density": 0.05, "fibers.phi_step": 2.0}, {"elevation": 89.0}),
+                 "fibers.edge_density": 0.05, "fibers.edge_thickness": 0.05, "fibers.phi_step": 2.0},
+     {"elevation": 89.0}),
+    ("thin-edge-thick-core", {"scene.generator": "single", "scene.radius": 1.0, "scene.length": 3.0,
+                              "fibers.rings": 4, "fibers.fiber_radius": 0.12, "fibers.edge_thickness": 0.1,
+                              "fibers.edge_width": 1.0, "fibers.phi_step": 8.0, "fibers.radial_jitter": 1.0},
+     {"elevation": 10.0}),
+    ("shaped", {"scene.generator": "single", "scene.radius": 1.0, "scene.length": 2.0, "fibers.rings": 5,
+                "fibers.phi_step": 9.0, "fibers.fiber_radius": 0.06, "shape.curl_amplitude": 0.4,
+                "shape.twist": 0.5, "shape.ellipsoid": 0.5, **PROFILE}, {"elevation": 20.0}),
 ]
 
 
@@ -168,7 +197,8 @@ def test_explicit_places_the_profiled_fibers():
 
 
 def test_explicit_draws_the_profiled_fibers(ctx, renderer):
-    p, scene, cam = setup(renderer, {"scene.count": 8, "fibers.phi_step": 3.0, **PROFILE})
+    p, scene, cam = setup(renderer, {"scene.count": 8, "fibers.phi_step": 3.0, "fibers.fiber_radius": 0.04,
+                                     **PROFILE})
     virtual = renderer.render(p, cam, SIZE, outputs=("ids",), mode="exact")
     e = ExplicitRenderer(ctx)
     try:
@@ -251,10 +281,10 @@ def test_groom_controls_change_the_groom_image(renderer, values):
 # --------------------------------------------------------------------------------------------------
 # The OSL twin: vf_ring computes the profiled layout in the shader (float32)
 # --------------------------------------------------------------------------------------------------
-from tests.test_osl_export import _probe, blender_test, cycles, gl_vs_cycles  # noqa: E402,F401 (fixture)
+from tests.export.test_osl_export import _probe, blender_test, cycles, gl_vs_cycles  # noqa: E402,F401 (fixture)
 
 OSL_PROFILES = [dict(PROFILE), {"fibers.edge_density": 0.02, "fibers.edge_width": 1.0, "fibers.rings": 64,
-                                "fibers.phi_step": 0.7, "fibers.fiber_radius": 0.005},
+                                "fibers.phi_step": 0.7, "fibers.fiber_radius": 0.005, "fibers.edge_thickness": 0.05},
                 {"fibers.edge_density": 0.37, "fibers.edge_width": 0.05, "fibers.rings": 3, "fibers.phi_step": 9.0,
                  "fibers.even_spacing": 1.0, "fibers.phi_increment": 2.0},
                 {"fibers.edge_density": 0.5, "fibers.hash": "thesis", "fibers.rings": 5, "fibers.phi_step": 7.0}]
@@ -266,6 +296,7 @@ def test_the_export_carries_the_profile():
     src = X.osl_source(Params(PROFILE))
     assert "float fibers_edge_density = 0.25" in src and "float fibers_edge_width = 0.6" in src
     assert "p.edgeDensity = fibers_edge_density;" in src and "p.edgeWidth = fibers_edge_width;" in src
+    assert "float fibers_edge_thickness = 0.4" in src and "p.edgeThickness = fibers_edge_thickness;" in src
 
 
 @blender_test
@@ -276,7 +307,8 @@ def test_profiled_layout_in_cycles_matches_reference(cycles, tmp_path):
     fields = {"rings": ("int", "fibers.rings"), "phiStep": ("float", "fibers.phi_step"),
               "phiIncrement": ("float", "fibers.phi_increment"), "evenSpacing": ("float", "fibers.even_spacing"),
               "edgeDensity": ("float", "fibers.edge_density"), "edgeWidth": ("float", "fibers.edge_width"),
-              "fiberRadius": ("float", "fibers.fiber_radius"), "radialJitter": ("float", "fibers.radial_jitter"),
+              "edgeThickness": ("float", "fibers.edge_thickness"), "fiberRadius": ("float", "fibers.fiber_radius"),
+              "radialJitter": ("float", "fibers.radial_jitter"),
               "angularJitter": ("float", "fibers.angular_jitter"), "seed": ("int", "fibers.seed")}
     arrays = {f"a_{f}": (t, [repr(float(looks[li][key])) if t == "float" else int(looks[li][key])
                              for li, _ in rows]) for f, (t, key) in fields.items()}
@@ -285,14 +317,14 @@ def test_profiled_layout_in_cycles_matches_reference(cycles, tmp_path):
     body = [f"    if (k < {len(rows)}) {{", "        VfParams p;"]
     body += [f"        p.{f} = a_{f}[k];" for f in fields]
     body += ["        p.thesisHash = a_thesis[k];", "        VfRing R;", "        vf_ring(p, a_ring[k], R);",
-             "        value = color((float)R.n, R.rot, R.reach);", "    }"]
+             "        value = color((float)R.n, R.fiberRadius, R.reach);", "    }"]
     got = _probe(cycles, tmp_path, "vf_profile_probe", arrays, "\n".join(body), len(rows))
     for li, p in enumerate(looks):
         lay = reference.ring_layout(p)
         sel = [k for k, (lj, _) in enumerate(rows) if lj == li]
         assert got[sel, 0].tolist() == lay.n.tolist(), f"{OSL_PROFILES[li]}: fibers per ring differ"
         assert lay.n[0] < ring_layout(p.replace(**{"fibers.edge_density": 1.0})).n[0]
-        np.testing.assert_allclose(got[sel, 1], lay.rot, atol=2e-6)
+        np.testing.assert_allclose(got[sel, 1], lay.ring_radius, rtol=1e-6, atol=1e-9)
         assert (got[sel, 2] >= lay.reach - 2e-6).all() and (got[sel, 2] <= lay.reach + 2e-3).all()
 
 
@@ -300,8 +332,8 @@ def test_profiled_layout_in_cycles_matches_reference(cycles, tmp_path):
 def test_profiled_fiber_ids_match_preview(cycles, renderer, tmp_path):
     """One container with a thinned edge: Cycles sees the same fiber as GL in (nearly) every pixel."""
     p = Params({"scene.generator": "single", "scene.radius": 0.3, "scene.length": 1.0, "fibers.rings": 5,
-                "fibers.phi_step": 6.0, "fibers.fiber_radius": 0.05, "fibers.edge_density": 0.3,
-                "fibers.edge_width": 0.7, "camera.elevation": 25.0})
+                "fibers.phi_step": 6.0, "fibers.fiber_radius": 0.08, "fibers.edge_density": 0.3,
+                "fibers.edge_width": 0.7, "fibers.edge_thickness": 0.3, "camera.elevation": 25.0})
     r = gl_vs_cycles(cycles, renderer, p, tmp_path, "profile_ids", debug_view=1)
     both = r["gl"] & r["cycles"]
     rgb = np.round(r["res"]["rgba"][..., :3]).astype(np.int64)
