@@ -16,7 +16,6 @@ from app.fibers import fiber_count, ring_layout
 from app.params import ParamError, Params
 from app.render.camera import Camera
 from app.render.explicit import ExplicitRenderer, compare_frames, fiber_centers
-from app.scene.containers import Scene
 from tests.support.ids import gpu_ids, reference_ids, setup
 from tests.support.paths import HAIR_DATA
 
@@ -281,7 +280,17 @@ def test_groom_controls_change_the_groom_image(renderer, values):
 # --------------------------------------------------------------------------------------------------
 # The OSL twin: vf_ring computes the profiled layout in the shader (float32)
 # --------------------------------------------------------------------------------------------------
-from tests.export.test_osl_export import _probe, blender_test, cycles, gl_vs_cycles  # noqa: E402,F401 (fixture)
+from tests.export.test_osl_export import _probe, blender_test, gl_vs_cycles  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def cycles():
+    from app.export import blender as B
+
+    ok, why = B.blender_available()
+    if not ok:
+        pytest.skip(f"Blender harness unavailable: {why}")
+    return B
 
 OSL_PROFILES = [dict(PROFILE), {"fibers.edge_density": 0.02, "fibers.edge_width": 1.0, "fibers.rings": 64,
                                 "fibers.phi_step": 0.7, "fibers.fiber_radius": 0.005, "fibers.edge_thickness": 0.05},
