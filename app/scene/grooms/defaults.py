@@ -34,7 +34,7 @@ PX_PER_HALF_DIAGONAL = 0.0048
 box, so it varies a little with the shape)."""
 FIBER_WIDTH_PX = 0.5
 MAX_RING_FILL = 0.8            # a fiber's diameter at most this fraction of its ring's width
-CORE_DEPTH = 6.0               # fibers a ray through the axis meets on average: 1 - e^-6 = 99.8% opaque
+CORE_DEPTH = 10.0              # fibers a ray through the axis meets on average (6 left Curly 27 deg off)
 MIN_RINGS, MAX_RINGS = 2, 10
 EDGE_DENSITY, EDGE_WIDTH = 0.3, 0.5
 EDGE_MIN_RINGS = 4             # fewer rings are too coarse for a profile: thinning ring 0 of 2 thins 3/4 of the area
