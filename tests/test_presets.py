@@ -179,6 +179,8 @@ def bad_values(p: Param) -> st.SearchStrategy[str]:
     if p.kind is tuple:
         return st.sampled_from(["[0.5, 0.5]", "[0.5, 0.5, 0.5, 0.5]", "[0.5, nan, 0.5]",
                                 f"[0.5, {p.hi * 2 + 1!r}, 0.5]", '"red"', "0.5"])
+    if p.kind is bool:
+        return st.sampled_from(['"true"', "1", "0", "1.5", "[true]"])
     if p.choices:
         return st.text(min_size=1, max_size=10).filter(lambda t: t not in p.choices).map(
             lambda t: tomli_w.dumps({"v": t})[4:].strip()) | st.sampled_from(["1", "true"])
