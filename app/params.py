@@ -294,7 +294,7 @@ class Params:
     def __iter__(self) -> Iterator[str]:
         return iter(self.values)
 
-    def replace(self, **changes: Any) -> "Params":
+    def replace(self, **changes: Any) -> Params:
         """``p.replace(**{"fibers.rings": 20})`` or ``p.replace(fibers__rings=20)``."""
         new = dict(self.values)
         for key, value in changes.items():

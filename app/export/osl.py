@@ -54,7 +54,8 @@ import math
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
+from collections.abc import Sequence
 
 from app.atomic import atomic_write_text
 from app.errors import UsageError

@@ -62,7 +62,7 @@ class Shape:
     noise_frequency: float = 0.0
 
     @staticmethod
-    def from_params(p: Params) -> "Shape":
+    def from_params(p: Params) -> Shape:
         curl, frizz, noise = shape_amplitudes(p)
         return Shape(p["shape.ellipsoid"], p["shape.twist"], TWIST_PATTERNS[p["shape.twist_pattern"]],
                      curl, p["shape.curl_frequency"], CURL_PATTERNS[p["shape.curl_pattern"]],

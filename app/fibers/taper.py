@@ -41,7 +41,7 @@ class Taper:
     start: float = 0.5         # fraction of the fiber's length where thinning begins
 
     @staticmethod
-    def from_params(p) -> "Taper":
+    def from_params(p) -> Taper:
         return Taper(float(p["strand.tip_width"]), float(p["strand.taper_start"]))
 
     @property

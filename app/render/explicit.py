@@ -178,7 +178,7 @@ class _Frames:
     v1: np.ndarray
 
     @staticmethod
-    def of(rows: np.ndarray) -> "_Frames":
+    def of(rows: np.ndarray) -> _Frames:
         rows = rows.astype(np.float64)
         p0, p1 = rows[..., 0:3], rows[..., 4:7]
         axis = p1 - p0

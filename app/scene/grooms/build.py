@@ -39,7 +39,7 @@ def _scene_rows(guides: np.ndarray, radii: np.ndarray, taper: float, name: str) 
     return rows, origin
 
 
-def groom_scene(groom: Groom, p: Params, seconds: dict[str, float] | None = None) -> "GroomScene":
+def groom_scene(groom: Groom, p: Params, seconds: dict[str, float] | None = None) -> GroomScene:
     """Containers for a loaded groom under parameters ``p`` (see :func:`scene_from_groom`)."""
     from ..groom_info import GroomScene, GroomSource
 
@@ -123,7 +123,7 @@ def groom_scene(groom: Groom, p: Params, seconds: dict[str, float] | None = None
                       source=source, params=p)
 
 
-def scene_from_groom(p: Params) -> "GroomScene":
+def scene_from_groom(p: Params) -> GroomScene:
     """The scene of ``scene.groom_file``: load (``scene.groom_up``, ``scene.groom_scale``), build guides
     (``scene.groom_cluster``, ``scene.segments``, ``scene.seed``) and containers (``scene.taper``).
 

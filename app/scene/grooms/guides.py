@@ -8,7 +8,7 @@ float64 elements.
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -172,7 +172,7 @@ class Guides(tuple):
     labels: np.ndarray
 
     def __new__(cls, polylines: list[np.ndarray], radii: np.ndarray, dropped: dict[str, int],
-                labels: np.ndarray) -> "Guides":
+                labels: np.ndarray) -> Guides:
         self = super().__new__(cls, (polylines, radii))
         self.dropped = dropped
         self.labels = labels

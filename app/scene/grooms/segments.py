@@ -4,7 +4,7 @@ close to the strands they stand for and no joint folds too sharply (see :func:`a
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
