@@ -14,7 +14,7 @@ import pytest
 from app import fibers, reference
 from app.params import ParamError, Params
 from app.render.explicit import ExplicitRenderer, compare_frames, plan
-from tests.support.ids import gpu_ids, reference_ids, setup
+from tests.support.ids import assert_matches_reference, gpu_ids, reference_ids, setup
 
 SIZE = (128, 96)
 ONE = {"scene.generator": "single", "scene.radius": 1.0, "scene.length": 4.0, "fibers.rings": 5,
@@ -145,17 +145,7 @@ def test_tapered_exact_equals_brute(renderer, name):
 
 
 def test_tapered_glsl_matches_float64_reference(renderer):
-    agree = total = 0
-    for values, camera in SCENES.values():
-        p, scene, cam = setup(renderer, values, camera)
-        size = (96, 72)
-        got = gpu_ids(renderer.render(p, cam, size, outputs=("ids",), mode="exact"))
-        ref = reference_ids(scene, p, cam, size)
-        hit = (ref[..., 0] > 0) | (got[..., 0] > 0)
-        agree += np.all(ref == got, -1)[hit].sum()
-        total += hit.sum()
-    assert total > 3000
-    assert agree / total >= 0.999, f"{total - agree} of {total} hit pixels disagree with float64"
+    assert_matches_reference(renderer, SCENES.values())
 
 
 def test_taper_changes_the_image_and_thins_the_tips(renderer):

@@ -14,7 +14,7 @@ from app import fibers
 from app.params import Params
 from app.render import explicit, renderer as R
 from tests.export.test_osl_export import blender_test, gl_vs_cycles
-from tests.support.ids import gpu_ids, reference_ids, setup
+from tests.support.ids import assert_matches_reference, setup
 
 SIZE = (128, 96)
 ONE = {"scene.generator": "single", "scene.radius": 1.0, "scene.length": 4.0, "fibers.rings": 5,
@@ -128,17 +128,8 @@ def test_frizz_exact_equals_brute(renderer, name):
 
 
 def test_frizz_glsl_matches_float64_reference(renderer):
-    agree = total = 0
-    for values in [*LOOKS.values(), EXTREMES["frizz-max-curl-max"]]:
-        p, scene, cam = setup(renderer, values, {"elevation": 25.0})
-        size = (96, 72)
-        got = gpu_ids(renderer.render(p, cam, size, outputs=("ids",), mode="exact"))
-        ref = reference_ids(scene, p, cam, size)
-        hit = (ref[..., 0] > 0) | (got[..., 0] > 0)
-        agree += np.all(ref == got, -1)[hit].sum()
-        total += hit.sum()
-    assert total > 3000
-    assert agree / total >= 0.999, f"{total - agree} of {total} hit pixels disagree with float64"
+    looks = [*LOOKS.values(), EXTREMES["frizz-max-curl-max"]]
+    assert_matches_reference(renderer, [(values, {"elevation": 25.0}) for values in looks])
 
 
 def test_the_explicit_baseline_says_it_leaves_frizz_out(ctx):

@@ -9,7 +9,7 @@ from app import reference
 from app.params import Params
 from app.render.camera import Camera
 from app.scene.containers import Scene, orthonormal_x
-from tests.support.ids import gpu_ids, reference_ids, setup
+from tests.support.ids import assert_matches_reference, setup
 
 SIZE = (128, 96)
 ONE = {"scene.generator": "single", "scene.radius": 1.0, "scene.length": 4.0, "fibers.rings": 5,
@@ -40,17 +40,7 @@ def test_curved_exact_equals_brute(renderer, name):
 
 
 def test_curved_glsl_matches_float64_reference(renderer):
-    agree = total = 0
-    for name in SHAPES:
-        p, scene, cam = setup(renderer, SHAPES[name], {"elevation": 25.0})
-        size = (96, 72)
-        got = gpu_ids(renderer.render(p, cam, size, outputs=("ids",), mode="exact"))
-        ref = reference_ids(scene, p, cam, size)
-        hit = (ref[..., 0] > 0) | (got[..., 0] > 0)
-        agree += np.all(ref == got, -1)[hit].sum()
-        total += hit.sum()
-    assert total > 3000
-    assert agree / total >= 0.999, f"{total - agree} of {total} hit pixels disagree with float64"
+    assert_matches_reference(renderer, [(values, {"elevation": 25.0}) for values in SHAPES.values()])
 
 
 def test_twisted_fibers_have_twisted_tangents(renderer):
