@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .fibers import fiber_count, ring_layout
+from .fibers import fiber_count, ring_layout, tapered
 from .params import Params
 from .render import explicit
 from .render.renderer import frame_gpu_bytes, scene_gpu_bytes
@@ -57,7 +57,7 @@ def gpu_bytes(scene: Scene, p: Params) -> dict[str, tuple[int, str]]:
         "virtual": (scene_gpu_bytes(scene),
                     "container segments" + (" + per-guide colours" if scene.guide_colors is not None else "")
                     + " + their hierarchy + proxy rectangle (Renderer.set_scene)"),
-        "explicit": (pl.gpu_bytes, f"ExplicitRenderer: {explicit.INSTANCE_BYTES} B per fiber per segment "
+        "explicit": (pl.gpu_bytes, f"ExplicitRenderer: {_instance_bytes(p)} B per fiber per segment "
                                    f"({pl.instances:,}) + {explicit.ROW_BYTES} B per segment"),
     }
 
@@ -77,3 +77,9 @@ def groom_lines(scene, p: Params | None = None) -> list[str]:
     its current ones)."""
     p = p or scene.params or Params({})
     return scene.source_info(p, gpu_lines=gpu_lines(scene, p))
+
+
+def _instance_bytes(p: Params) -> int:
+    """Bytes per explicit fiber instance: tapered fibers also store where they end (render.explicit)."""
+    return explicit.INSTANCE_BYTES + (explicit.TAPER_BYTES if tapered(p) else 0)
+

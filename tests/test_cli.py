@@ -101,6 +101,17 @@ def test_viewer_and_info_show_one_explicit_figure_on_sintel(capsys):
     assert state.stats.explicit_bytes == info_bytes == estimate_bytes(scene, p)
     assert info_bytes == 59_207_040   # 1,368 segments x 3,600 fibers x 12 B + 1,368 rows x 80 B (56.5 MiB)
 
+    # tapered fibers also store where they end (2 B more per instance): both faces still agree
+    tapered_sets = ["strand.tip_width=0.2"]
+    assert main(["info", str(SINTEL), *sum((["--set", s] for s in tapered_sets), [])]) == 0
+    line = next(ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("GPU explicit"))
+    tapered_bytes = int(line.split()[2].replace(",", ""))
+    p, _ = resolve_params(str(SINTEL), tapered_sets)
+    state = AppState(params=p)
+    Viewer._update_counts(SimpleNamespace(state=state, scene=scene))
+    assert state.stats.explicit_bytes == tapered_bytes == estimate_bytes(scene, p)
+    assert tapered_bytes == 59_207_040 + 1_368 * 3_600 * 2
+
 
 def test_set_is_parsed_once_for_every_face(tmp_path):
     """The command line and the OSL export read --set alike, the bracket-free colour included."""

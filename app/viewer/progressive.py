@@ -23,7 +23,7 @@ import statistics
 import time
 from typing import Any
 
-from ..fibers import fiber_count, ring_layout
+from ..fibers import fiber_count, ring_layout, tapered
 from ..gl.shaders import ShaderError
 from ..params import ParamError
 from ..render import budget
@@ -68,7 +68,7 @@ class Progressive:
         f41, exact = fiber_count(s.params, scene.n_guides)
         per_container = ring_layout(s.params).fibers_per_container
         s.stats.fibers_41, s.stats.fibers_exact = f41, exact
-        s.stats.explicit_bytes = explicit_bytes(per_container, scene.n_segments)
+        s.stats.explicit_bytes = explicit_bytes(per_container, scene.n_segments, tapered(s.params))
 
     # --- render(state): never touches imgui --------------------------------------------------------
     def _update_estimate(self) -> None:
