@@ -459,11 +459,18 @@ class AppState:
         return True
 
     def save(self) -> bool:
-        """Save to the current file; without one, ask for a path (the gui opens Save As)."""
-        if self.preset_path is None:
+        """Save to the current file; without one, ask for a path (the gui opens Save As). So does a document
+        whose scene now comes from elsewhere (a groom opened onto a look preset): saving it in place would
+        replace the person's look file with a groom scene."""
+        if self.preset_path is None or self._scene_source_changed():
             self.commands.append(("ask_save_as", {}))
             return False
         return self.save_as(self.preset_path)
+
+    def _scene_source_changed(self) -> bool:
+        if self.saved is None:
+            return False
+        return any(self.params[k] != self.saved[k] for k in ("scene.generator", "scene.groom_file"))
 
     def save_as(self, path: str | os.PathLike[str], name: str | None = None,
                 description: str | None = None) -> bool:

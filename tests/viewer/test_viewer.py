@@ -815,6 +815,27 @@ def test_a_groom_opened_under_a_look_keeps_the_look_and_frames_the_groom():
     assert s.undo() and s.params == initial_state("curly-1").params.replace(**{"camera.azimuth": 120.0})
 
 
+@needs_sintel
+def test_save_never_turns_a_look_file_into_a_groom_scene(tmp_path):
+    """A look preset is open, a groom is opened onto it: File > Save asks for a new path rather than writing
+    the groom scene over the person's look file; a change that keeps the scene saves in place as before."""
+    from app.presets import find_preset
+
+    look = tmp_path / "my-look.toml"
+    save_preset(look, find_preset("curly-1").params, "my look", "")
+    before = look.read_bytes()
+    s = AppState()
+    assert s.open(look, discard=True) and s.preset_path == look
+    s.edit("look.roughness", 0.5)
+    assert s.save() and look.read_bytes() != before            # same scene: saved in place
+    saved = look.read_bytes()
+    assert s.open_groom(SINTEL)
+    s.commands.clear()
+    assert not s.save() and ("ask_save_as", {}) in s.commands    # groom on screen: Save As instead
+    assert look.read_bytes() == saved
+    assert s.undo() and s.save()                                # back to the look's own scene: in place
+
+
 @needs_xvfb
 @needs_sintel
 def test_a_look_applied_in_a_session_shows_on_the_groom(tmp_path):
