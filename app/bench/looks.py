@@ -41,7 +41,12 @@ COHERENCE_MIN = 0.3
 TARGET_IOU, TARGET_ORIENTATION_DEG = 0.9, 10.0
 GROOMS = ("sintel_hair.tfx", "Bangs_100.hair", "Ratboy_mohawk.tfx", "harolongo.data", "Curly_100.ply")
 # label -> --set assignments on top of the groom's own parameters; the strand-controls work adds "after"
-VARIANTS: dict[str, list[str]] = {"before": []}
+VARIANTS: dict[str, list[str]] = {
+    "before": [],
+    # the strand controls together (docs/grooms.md, "The strand controls together"): per-groom defaults,
+    # pointed tips, a soft clump edge
+    "after": ["fibers.groom_auto=true", "strand.tip_width=0.1", "fibers.edge_density=0.3"],
+}
 # the suite's reference (strand_reference.METHODS); the full level also shows "disc", the earlier one, untargeted
 REFERENCE = "interpolated"
 

@@ -263,6 +263,7 @@ def test_degenerate_strands_give_no_nan():
 
 # --- a tiny run on a shared groom ---------------------------------------------------------------------------
 def test_suite_smoke_on_one_groom(ctx, tmp_path):
+    from app.bench import looks
     from app.bench.grooms import HAIR_DATA
     from app.bench.suites import SUITES, Env
 
@@ -272,7 +273,8 @@ def test_suite_smoke_on_one_groom(ctx, tmp_path):
     cfg = SUITES["looks"].configs("smoke")[0]
     env = Env(ctx, reps=1, warmup=0, level="smoke", out=str(tmp_path))
     rows = SUITES["looks"].run(env, cfg)
-    assert [(r["variant"], r["reference"]) for r in rows] == [("before", "interpolated")]
+    assert [(r["variant"], r["reference"]) for r in rows] == [("before", "interpolated"), ("after", "interpolated")]
+    assert rows[1]["sets"] == " ".join(looks.VARIANTS["after"]) and rows[1]["iou"] != rows[0]["iou"]
     r = rows[0]
     assert 0.0 < r["iou"] <= 1.0 and 0.0 < r["covered_reference"] and 0.0 < r["covered_virtual"]
     assert r["virtual_fibers"] == 360_000 and r["capped"] == "yes"
@@ -283,10 +285,10 @@ def test_suite_smoke_on_one_groom(ctx, tmp_path):
     from app.contact_sheet import labels_of, layout_of
 
     labels = labels_of(sheet)
-    assert len(labels) == 2 and labels[0].startswith("Curly_100.ply reference (interpolated)")
-    assert labels[1].startswith("before")
+    assert len(labels) == 3 and labels[0].startswith("Curly_100.ply reference (interpolated)")
+    assert labels[1].startswith("before") and labels[2].startswith("after")
     boxes, _ = layout_of(sheet)
-    assert boxes[0][1] == boxes[1][1]                                         # one row: reference | before
+    assert boxes[0][1] == boxes[1][1] == boxes[2][1]                # one row: reference | before | after
 
 
 def test_set_fibers_refuses_records_that_do_not_fit_the_rows(ctx):
