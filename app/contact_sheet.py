@@ -62,25 +62,15 @@ def _font(size: int):
 
 def render_contact_sheet(looks: list[tuple[str, Params]], tile: tuple[int, int], out: str | Path,
                          progress: Callable[[int, int, str], None] | None = None):
-    """Render every look at ``tile`` size into one labelled grid; written atomically to ``out``."""
-    from PIL import Image, ImageDraw, PngImagePlugin
-
-    from .atomic import atomic_path
+    """Render every look at ``tile`` size into one labelled grid (``compose_sheet``); written atomically
+    to ``out``."""
     from .gl.context import create_headless
     from .render.camera import Camera
     from .render.renderer import Renderer
     from .scene.generators import build_scene
 
     w, h = tile
-    cols = math.ceil(math.sqrt(len(looks)))
-    rows = math.ceil(len(looks) / cols)
-    font = _font(14)
-    measure = ImageDraw.Draw(Image.new("RGB", (1, 1)))
-    wrapped = [_wrap(measure, label, font, w - 12) for label, _ in looks]
-    label_height = 8 + LINE_HEIGHT * max(len(lines) for lines in wrapped)
-    boxes = tile_boxes(len(looks), tile, label_height)
-    sheet = Image.new("RGB", (cols * (w + GAP) + GAP, rows * (h + label_height + GAP) + GAP), SHEET_BG)
-    draw = ImageDraw.Draw(sheet)
+    tiles = []
     scenes: dict[tuple, object] = {}
     with create_headless() as gl:
         renderer = Renderer(gl.ctx)
@@ -94,19 +84,10 @@ def render_contact_sheet(looks: list[tuple[str, Params]], tile: tuple[int, int],
                 renderer.set_scene(scene)
                 shown = scene
             cam = Camera.from_params(p, scene, w / h)
-            img = renderer.render_quality(p, cam, (w, h), outputs=("color",)).color
-            x, y, _, _ = boxes[n]
-            sheet.paste(Image.fromarray(img), (x, y))
-            for i, line in enumerate(wrapped[n]):
-                draw.text((x + 6, y + h + 4 + i * LINE_HEIGHT), line, fill=LABEL_FG, font=font)
+            tiles.append((label, renderer.render_quality(p, cam, (w, h), outputs=("color",)).color))
             if progress is not None:
                 progress(n + 1, len(looks), label)
-    info = PngImagePlugin.PngInfo()
-    info.add_text(LABEL_KEY, json.dumps([label for label, _ in looks]))
-    info.add_text(TILES_KEY, json.dumps({"boxes": boxes, "label_height": label_height}))
-    with atomic_path(out) as tmp:
-        sheet.save(tmp, format="PNG", pnginfo=info)
-    return sheet
+    return compose_sheet(tiles, out)
 
 
 def compose_sheet(tiles: list[tuple[str, np.ndarray]], out: str | Path, cols: int | None = None):
