@@ -27,7 +27,6 @@ from __future__ import annotations
 import argparse
 import csv
 import platform
-import subprocess
 import time
 from dataclasses import dataclass
 from datetime import date
@@ -35,6 +34,10 @@ from pathlib import Path
 
 import numpy as np
 from PIL import Image
+
+from ..errors import UsageError
+from ..units import parse_size
+from .timing import short_commit
 
 STABILITY_THRESHOLD = 4.0       # sRGB levels (of 255): the "changes by more than 4/255"
 MOVE_PX = 0.1                   # the camera move, in pixels
@@ -352,7 +355,7 @@ def run(size=(320, 180), reps: int = 5, scenes=SCENES, ref_n: int = REFERENCE_N,
             per_scene.append((name, pics, best_mode(r)))
             s.renderer.release_targets()
         if out is not None:
-            header = (f"Date {date.today()}, commit {_commit()}, `{command}`. Machine: "
+            header = (f"Date {date.today()}, commit {short_commit()}, `{command}`. Machine: "
                       f"{platform.processor() or platform.machine()}, {hc.renderer}, {hc.version}. Image "
                       f"{size[0]}x{size[1]}; move {MOVE_PX} px to the right (``offset``); reference "
                       f"{ref_n}x{ref_n} jittered stratified single-ray frames averaged in linear light (gamma "
@@ -363,19 +366,11 @@ def run(size=(320, 180), reps: int = 5, scenes=SCENES, ref_n: int = REFERENCE_N,
         hc.release()
 
 
-def _commit() -> str:
-    try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                              check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-
-
 def _size(text: str) -> tuple[int, int]:
     try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"--size {text!r}: expected WxH, e.g. 320x180") from None
+        w, h = parse_size(text)
+    except UsageError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
     if w < 8 or h < 8:
         raise argparse.ArgumentTypeError(f"--size {text!r}: at least 8x8")
     return w, h

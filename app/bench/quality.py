@@ -21,7 +21,6 @@ from __future__ import annotations
 import argparse
 import csv
 import platform
-import subprocess
 from datetime import date
 from pathlib import Path
 
@@ -38,7 +37,7 @@ from ..render.camera import Camera
 from ..render.debug_views import cost_image
 from ..render.renderer import Renderer
 from ..scene.generators import build_scene
-from .timing import time_frames
+from .timing import short_commit, time_frames
 
 
 def frame_ms(ctx, fn, reps: int) -> tuple[float, float]:
@@ -338,7 +337,7 @@ def main(argv: list[str] | None = None) -> int:
     size = (320, 180) if args.quick else (640, 360)
     steps = {"traversal": 3, "shapes": 13, "antialias": 5, "shadows": 3, "hash": 2}
     command = " ".join(["python -m app.bench.quality", *args.sections] + (["--quick"] if args.quick else []))
-    header = (f"Date {date.today()}, commit {_commit()}, `{command}`. "
+    header = (f"Date {date.today()}, commit {short_commit()}, `{command}`. "
               f"Machine: {platform.processor() or platform.machine()}, {b.gl.renderer}, {b.gl.version}. "
               f"Image {size[0]}x{size[1]}; medians of {b.reps} frames after 2 warm-up frames "
               f"(ctx.finish() + wall clock).")
@@ -351,14 +350,6 @@ def main(argv: list[str] | None = None) -> int:
     (args.out / "README.md").write_text("\n".join(md))
     print(f"wrote {args.out / 'README.md'}")
     return 0
-
-
-def _commit() -> str:
-    try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                              check=True).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
 
 
 if __name__ == "__main__":

@@ -159,6 +159,11 @@ def _git(*args: str) -> str:
         return ""
 
 
+def short_commit() -> str:
+    """The checkout's abbreviated HEAD, for a report's header ("unknown" outside git)."""
+    return _git("rev-parse", "--short", "HEAD") or "unknown"
+
+
 def _cpu_model() -> str:
     try:
         with open("/proc/cpuinfo") as f:
