@@ -437,6 +437,13 @@ def gl_vs_cycles(B, renderer, p: Params, tmp_path, name: str, *, debug_view: int
     return out
 
 
+def same_fiber(r: dict) -> np.ndarray:
+    """Per pixel of a ``gl_vs_cycles(..., debug_view=1)`` run: Cycles' id colour (ring, fiber, guide + 1)
+    names the fiber the GL preview saw."""
+    rgb = np.round(r["res"]["rgba"][..., :3]).astype(np.int64)
+    return (rgb[..., 0] == r["ids"][..., 1]) & (rgb[..., 1] == r["ids"][..., 2]) & (rgb[..., 2] == r["ids"][..., 0])
+
+
 @blender_test
 @pytest.mark.parametrize("look", list(LOOKS))
 def test_coverage_mask_matches_preview(cycles, renderer, tmp_path, look, record_property):
@@ -458,8 +465,7 @@ def test_fiber_ids_match_preview(cycles, renderer, tmp_path):
                 "shape.curl_frequency": 3.0, "shape.twist": 0.5, "camera.elevation": 25.0})
     r = gl_vs_cycles(cycles, renderer, p, tmp_path, "ids", debug_view=1)
     both = r["gl"] & r["cycles"]
-    rgb = np.round(r["res"]["rgba"][..., :3]).astype(np.int64)
-    same = (rgb[..., 0] == r["ids"][..., 1]) & (rgb[..., 1] == r["ids"][..., 2]) & (rgb[..., 2] == r["ids"][..., 0])
+    same = same_fiber(r)
     print(f"fiber ids agree on {same[both].mean():.4%} of {both.sum()} pixels both cover")
     assert both.sum() > 3000 and r["agree"] >= 0.995
     assert same[both].mean() >= 0.995

@@ -280,7 +280,7 @@ def test_groom_controls_change_the_groom_image(renderer, values):
 # --------------------------------------------------------------------------------------------------
 # The OSL twin: vf_ring computes the profiled layout in the shader (float32)
 # --------------------------------------------------------------------------------------------------
-from tests.export.test_osl_export import _probe, blender_test, gl_vs_cycles  # noqa: E402
+from tests.export.test_osl_export import _probe, blender_test, gl_vs_cycles, same_fiber  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -345,8 +345,7 @@ def test_profiled_fiber_ids_match_preview(cycles, renderer, tmp_path):
                 "fibers.edge_width": 0.7, "fibers.edge_thickness": 0.3, "camera.elevation": 25.0})
     r = gl_vs_cycles(cycles, renderer, p, tmp_path, "profile_ids", debug_view=1)
     both = r["gl"] & r["cycles"]
-    rgb = np.round(r["res"]["rgba"][..., :3]).astype(np.int64)
-    same = (rgb[..., 0] == r["ids"][..., 1]) & (rgb[..., 1] == r["ids"][..., 2]) & (rgb[..., 2] == r["ids"][..., 0])
+    same = same_fiber(r)
     assert both.sum() > 2000 and r["agree"] >= 0.995
     assert same[both].mean() >= 0.99, f"fiber ids agree on only {same[both].mean():.4%} of {both.sum()} px"
 
