@@ -153,6 +153,9 @@ class Scene:
     # Per guide, never per fiber: the groom file's linear colour at the guide's root and tip, (n_guides, 2, 3)
     # float32, or None where the source has no colours (generators, most groom files).
     guide_colors: np.ndarray | None = None
+    # Derived once and kept: a scene's rows are uploaded to the GPU once and never changed in place, and the
+    # viewer asks for its bounds and end points several times a UI frame (harolongo: ~50 ms each).
+    _derived: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     def __post_init__(self):
         self.segments = np.ascontiguousarray(self.segments, dtype=np.float32).reshape(-1, SEGMENT_FLOATS)
@@ -188,11 +191,32 @@ class Scene:
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """World-space (float64) bounding box of all containers, radii included."""
-        s = self.segments.astype(np.float64)
-        r = np.maximum(s[:, 3], s[:, 7])[:, None]
-        lo = np.minimum(s[:, 0:3], s[:, 4:7]) - r
-        hi = np.maximum(s[:, 0:3], s[:, 4:7]) + r
-        return lo.min(0) + self.origin, hi.max(0) + self.origin
+        if "bounds" not in self._derived:
+            s = self.segments.astype(np.float64)
+            r = np.maximum(s[:, 3], s[:, 7])[:, None]
+            lo = np.minimum(s[:, 0:3], s[:, 4:7]) - r
+            hi = np.maximum(s[:, 0:3], s[:, 4:7]) + r
+            self._derived["bounds"] = (lo.min(0) + self.origin, hi.max(0) + self.origin)
+        lo, hi = self._derived["bounds"]
+        return lo.copy(), hi.copy()
+
+    def end_points(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every segment's two end points in world space (float64, (2N, 3)) and their radii ((2N,)), root ends
+        first. Read-only arrays, computed once: the camera frames the scene from them."""
+        if "end_points" not in self._derived:
+            seg = self.segments
+            pts = np.concatenate([seg[:, 0:3], seg[:, 4:7]]).astype(np.float64) + self.origin
+            rad = np.concatenate([seg[:, 3], seg[:, 7]]).astype(np.float64)
+            pts.flags.writeable = rad.flags.writeable = False
+            self._derived["end_points"] = (pts, rad)
+        return self._derived["end_points"]
+
+    def end_point_extent(self) -> float:
+        """The diagonal of the end points' box plus the widest end's diameter (computed once)."""
+        if "extent" not in self._derived:
+            pts, rad = self.end_points()
+            self._derived["extent"] = float(np.linalg.norm(pts.max(0) - pts.min(0))) + 2 * float(rad.max())
+        return self._derived["extent"]
 
     def translated(self, offset) -> Scene:
         """The same scene moved in world space: only the float64 origin changes, never the float32 data."""
