@@ -14,6 +14,7 @@ Bindings (Blender-like, with trackpad fallbacks):
 
 from __future__ import annotations
 
+import copy
 import inspect
 import math
 from dataclasses import dataclass, field
@@ -51,10 +52,20 @@ class Input:
 
 def make_camera(p: Params, scene: Scene, aspect: float) -> Camera:
     """``Camera.from_params`` with the viewport's aspect where the camera module takes one (automatic
-    framing then fits the width too), without it where it does not."""
-    if _TAKES_ASPECT:
-        return Camera.from_params(p, scene, aspect=aspect)
-    return Camera.from_params(p, scene)
+    framing then fits the width too), without it where it does not.
+
+    The last camera is kept: the viewer asks for it several times a UI frame, and framing a 158,100-segment
+    groom costs ~20 ms each time. A copy is handed out, so a caller that moves it cannot move the cache."""
+    global _last_camera
+    key = (tuple((k, v) for k, v in p.values.items() if k.startswith("camera.")), float(aspect))
+    if _last_camera is not None and _last_camera[0] == key and _last_camera[1] is scene:
+        return copy.deepcopy(_last_camera[2])
+    cam = Camera.from_params(p, scene, aspect=aspect) if _TAKES_ASPECT else Camera.from_params(p, scene)
+    _last_camera = (key, scene, copy.deepcopy(cam))
+    return cam
+
+
+_last_camera: tuple[tuple, Scene, Camera] | None = None
 
 
 _TAKES_ASPECT = "aspect" in inspect.signature(Camera.from_params).parameters
