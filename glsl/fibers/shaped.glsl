@@ -42,6 +42,11 @@
 #define SHAPE_ELLIPSOID 1   // 0: built for ellipsoid 0 (the bands of the segment are the arc's)
 #endif
 
+// Exact mode's stop at the best hit's point (in traverse_shaped) pays where the displacement widens the
+// windows (curl, frizz, noise: 10% fewer fiber tests on the bench's curled scene); for twist or the
+// ellipsoid alone its per-candidate test cost more than it saved (docs/shaped-traversal.md).
+#define SHAPED_POINT_STOP (SHAPE_CURL != 0 || SHAPE_FRIZZ)
+
 struct Bands { float eLo; float eHi; };
 
 Bands segment_bands(Segment seg) {
@@ -66,11 +71,14 @@ vec2 ring_band(int i, Bands b) {
 // the half-line through the axis at its angle, and P is |P| sin(angle) from that line. So a piece whose
 // chord keeps away from the axis (rayMin: its nearest distance) narrows the reach of the inner rings,
 // where the disc alone would take the whole ring.
-float shaped_reach(int i, Bands b, float rayMin) {
+float shaped_disc(int i, Bands b, float rayMin) {
     float dMin = max(b.eLo * (uRingA[i].x - uRingB[i].x), rayMin);
     float r = uFiberRadius + shape_displacement();
-    float disc = dMin > r ? asin(r / dMin) : 3.14159265359;
-    return uRingB[i].y + disc + EPS_ANGLE;
+    return dMin > r ? asin(r / dMin) : 3.14159265359;
+}
+
+float shaped_reach(int i, Bands b, float rayMin) {
+    return uRingB[i].y + shaped_disc(i, b, rayMin) + EPS_ANGLE;
 }
 
 // The distance from the axis to the chord from a to b.
@@ -168,7 +176,9 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
         bool found = false;
         for (int k = 0; k < pieces; k++) {
             gIters++;
-            RingPoint P1 = k == pieces - 1 ? Pb : ring_point(seg, ur, a + float(k + 1) * step, i);
+            // the last piece ends at b itself: one ring_point with its parameter chosen (a select of two
+            // points would run both, and a piece's point costs a division, a root and, twisted, a sine)
+            RingPoint P1 = ring_point(seg, ur, k == pieces - 1 ? b : a + float(k + 1) * step, i);
             float invLen = P1.s > P0.s ? 1.0 / (P1.s - P0.s) : 0.0;
 #if SHAPE_CURL != 0
             vec4 curlStep = ring_curl_step(P0, P1);
@@ -177,7 +187,8 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
 #endif
             // the candidates: slots within the reach of the angles the piece sweeps (a chord never
             // sweeps half a turn or more: past 2.5 radians it passes so near the axis that all are taken)
-            float reach = shaped_reach(i, arcBands, chord_distance(P0.p, P1.p) * (1.0 - EPS_CHORD));
+            float rayMin = chord_distance(P0.p, P1.p) * (1.0 - EPS_CHORD);
+            float reach = shaped_reach(i, arcBands, rayMin);
             // exact: a hit nearer than one on candidate t lies before it on the chord, so its fiber's slot
             // is at most two reaches further on (traverse_straight's rule, with the piece's reach)
             int after = gMode == 1 ? int(floor(2.0 * reach * ringB.z * (1.0 + EPS_AFTER))) + 1 : n;
@@ -188,6 +199,19 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
             int dir = gMode == 2 || span >= 0.0 ? 1 : -1;
             float first = (thA - float(dir) * reach - ring.z) * ringB.z;
             float last = (thA + span + float(dir) * reach - ring.z) * ringB.z;
+#if SHAPED_POINT_STOP
+            // exact: a hit nearer than the best so far lies on this chord before the best's point H (the
+            // piece's end while the best lies beyond it). A fiber is hit only where the chord comes within
+            // the disc of its rest position, so where its rest direction, turned back by the disc, lies
+            // past H (seen from the axis, along the sweep), it and every later slot (the jitter keeps the
+            // rest directions in slot order) are hit after H, if at all: the scan stops there. Valid while
+            // the angles compared stay within half a turn of each other.
+            float sH = clamp(best.s, P0.s, P1.s);
+            vec2 H = sH >= P1.s ? P1.p : P0.p + ((sH - P0.s) * invLen) * (P1.p - P0.p);
+            bool angled = gMode == 1 && abs(span) + 2.0 * reach < 3.0;
+            float disc = shaped_disc(i, arcBands, rayMin) + EPS_ANGLE;
+            vec2 turn = vec2(cos(disc), -float(dir) * sin(disc));
+#endif
             int j0 = dir > 0 ? int(ceil(first)) : int(floor(first));
             int j1 = dir > 0 ? int(floor(last)) : int(ceil(last));
             int count = abs(span) > 2.5 ? n : min(max(0, (j1 - j0) * dir + 1), n);
@@ -218,6 +242,12 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
                 bestPhase = better ? phase : bestPhase;
                 found = found || better;
                 end = !better ? end : (gMode == 0 ? t : min(end, t + 1 + after));   // fast: the first wins
+#if SHAPED_POINT_STOP
+                H = better ? P0.p + ((s - P0.s) * invLen) * (P1.p - P0.p) : H;
+                vec2 back = vec2(turn.x * rest.x - turn.y * rest.y, turn.y * rest.x + turn.x * rest.y);
+                bool beyond = angled && float(dir) * (H.x * back.y - H.y * back.x) > 0.0;
+                end = beyond ? min(end, t + 1) : end;
+#endif
             }
             // exact: no later piece can start before the nearest hit; fast: stop at the first
             bool stop = gMode == 0 ? found : (gMode == 1 && P1.s >= best.s);

@@ -39,6 +39,29 @@ def test_curved_exact_equals_brute(renderer, name):
     assert exact.cost[..., 3].max() < 65_535
 
 
+# Exact mode's stop at the best hit's point (shaped.glsl: SHAPED_POINT_STOP) leans on the rest directions
+# keeping slot order, which full angular jitter brings to its edge (a fiber's offset reaches half its slot
+# less its disc), and on the angles compared staying within half a turn: dense rings, thin fibers, a wide
+# curl or frizz, seen across, at a slant and nearly along the fibers (many chord pieces per arc).
+POINT_STOP = {"scene.generator": "single", "scene.radius": 1.0, "scene.length": 4.0, "fibers.rings": 8,
+              "fibers.phi_step": 2.0, "fibers.fiber_radius": 0.01, "fibers.angular_jitter": 1.0,
+              "fibers.radial_jitter": 1.0}
+
+
+@pytest.mark.parametrize("shape", [{"shape.curl_amplitude": 0.5, "shape.curl_frequency": 9.0},
+                                   {"shape.frizz": 1.0, "shape.noise": 0.5, "shape.curl_frequency": 4.0}],
+                         ids=["curl", "frizz"])
+@pytest.mark.parametrize("elevation", [5.0, 35.0, 80.0])
+def test_the_stop_at_the_best_point_keeps_exact_equal_to_brute(renderer, shape, elevation):
+    p, scene, cam = setup(renderer, {**POINT_STOP, **shape}, {"elevation": elevation})
+    exact = renderer.render(p, cam, SIZE, outputs=("ids", "cost"), mode="exact")
+    brute = renderer.render(p, cam, SIZE, outputs=("ids",), mode="brute")
+    assert exact.hit.sum() > 300
+    differ = np.any(exact.ids[..., :3] != brute.ids[..., :3], -1).sum()
+    assert differ == 0, f"elevation {elevation}: {differ} pixels differ"
+    assert exact.cost[..., 3].max() < 65_535
+
+
 def test_curved_glsl_matches_float64_reference(renderer):
     assert_matches_reference(renderer, [(values, {"elevation": 25.0}) for values in SHAPES.values()])
 
