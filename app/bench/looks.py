@@ -205,6 +205,7 @@ def run(env, cfg: dict, variants: dict[str, list[str]] | None = None) -> list[Ro
     from ..render.camera import Camera
     from ..render.explicit import ExplicitRenderer
     from ..render.renderer import Renderer
+    from ..fibers import ring_layout
     from ..scene.generators import build_scene
     from . import strand_reference
     from .grooms import HAIR_DATA
@@ -249,10 +250,12 @@ def run(env, cfg: dict, variants: dict[str, list[str]] | None = None) -> list[Ro
         frame = renderer.render_quality(pv, cam, size, outputs=("color", "ids"))
         ms = round(1e3 * (time.perf_counter() - t0), 1)
         frame_along = along(frame)
+        drawn = ring_layout(pv).fibers_per_container * scenes[key].n_guides     # this variant's own fibers
         for (ref, ref_frame, build_s, ref_s), reference_along in zip(refs, ref_along):
             row: Row = {"groom": name, "variant": label, "reference": ref.method, "sets": " ".join(sets),
                         "width": size[0], "height": size[1], **judge(ref_frame, frame),
                         "strands_deg": frame_along, "reference_strands_deg": reference_along,
+                        "variant_fibers": drawn,
                         "virtual_fibers": ref.virtual_fibers, "reference_fibers": ref.fibers,
                         "reference_strands": ref.strands, "children": round(ref.children),
                         "reference_segments": ref.n_segments, "reference_fiber_radius": round(ref.fiber_radius, 4),
@@ -289,7 +292,8 @@ def sheet_tiles(groom: str, refs, shown: list[tuple[str, np.ndarray, Row]], stra
                f"{ref.strands:,} file strands x {ref.fibers_per_row:,} disc children = {ref.fibers:,} fibers{capped}")
         tiles.append((f"{groom} reference ({ref.method}): {how}", color))
     for label, color, row in shown:
-        caption = (f"{label}: vfiber {row['virtual_fibers']:,} fibers; IoU {row['iou']:.3f}, orientation "
+        fibers = row.get("variant_fibers", row["virtual_fibers"])
+        caption = (f"{label}: vfiber {fibers:,} fibers; IoU {row['iou']:.3f}, orientation "
                    f"{row['orientation_deg']:.1f} deg")
         if row.get("strands_deg") is not None:
             caption += f"; {row['strands_deg']:.1f} deg off the strands"
@@ -310,7 +314,8 @@ COLUMNS = [("groom", "groom"), ("variant", "variant"), ("reference", "reference"
            ("iou", "coverage IoU"),
            ("orientation_deg", "orientation median deg"), ("oriented_frac", "compared px"),
            ("strands_deg", "vfiber deg vs strands"), ("reference_strands_deg", "reference deg vs strands"),
-           ("virtual_fibers", "vfiber fibers"), ("reference_fibers", "reference fibers"),
+           ("variant_fibers", "vfiber fibers"), ("virtual_fibers", "fibers matched by the reference"),
+           ("reference_fibers", "reference fibers"),
            ("children", "children/strand"), ("capped", "capped"), ("reference_fiber_radius", "child radius / R"),
            ("covered_reference", "covered ref"), ("covered_virtual", "covered vfiber"),
            ("luma_reference", "luma ref"), ("luma_virtual", "luma vfiber"),

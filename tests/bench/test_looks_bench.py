@@ -273,11 +273,14 @@ def test_suite_smoke_on_one_groom(ctx, tmp_path):
     cfg = SUITES["looks"].configs("smoke")[0]
     env = Env(ctx, reps=1, warmup=0, level="smoke", out=str(tmp_path))
     rows = SUITES["looks"].run(env, cfg)
+    r0_fibers = rows[0]["virtual_fibers"]
     assert [(r["variant"], r["reference"]) for r in rows] == [(v, "interpolated") for v in looks.VARIANTS]
     assert rows[2]["sets"] == " ".join(looks.VARIANTS["after"]) and rows[2]["iou"] != rows[0]["iou"]
     # every picture is also held to the file's strands alone: a finite angle, and not the same for all
     assert all(0.0 <= r["strands_deg"] <= 90.0 and 0.0 <= r["reference_strands_deg"] <= 90.0 for r in rows)
     assert len({r["strands_deg"] for r in rows}) > 1
+    # each variant counts its own fibers: groom_auto draws far fewer than the defaults the reference matches
+    assert rows[0]["variant_fibers"] == r0_fibers and rows[1]["variant_fibers"] < r0_fibers
     r = rows[0]
     assert 0.0 < r["iou"] <= 1.0 and 0.0 < r["covered_reference"] and 0.0 < r["covered_virtual"]
     assert r["virtual_fibers"] == 360_000 and r["capped"] == "yes"
