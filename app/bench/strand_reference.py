@@ -377,14 +377,16 @@ def _interpolated_rows(children: np.ndarray, R: float, tip_width: float, origin:
 
 def build(p: Params, virtual_scene: Scene, *, max_instances: int = MAX_INSTANCES, seed: int = SEED,
           method: str = "interpolated", tip_taper: float = 0.0, clump: float = CLUMP,
-          length_variation: float = LENGTH_VARIATION, tip_width: float = TIP_WIDTH) -> Reference:
+          length_variation: float = LENGTH_VARIATION, tip_width: float = TIP_WIDTH,
+          k: int = K_GUIDES) -> Reference:
     """The reference strands of the groom ``p["scene.groom_file"]`` beside its virtual scene under ``p``
     (whose container radius and origin it takes, and whose fiber count it matches, see the module).
 
-    ``method``: ``"interpolated"`` (children blended from their nearest guides; ``clump``,
-    ``length_variation`` and ``tip_width`` shape them) or ``"disc"`` (children in a disc of radius R around
-    each strand; ``tip_taper`` (0 .. 1) shrinks their offset linearly to (1 - tip_taper) R at the tip, so
-    they gather toward the strand's tip, Blender's Clump)."""
+    ``method``: ``"interpolated"`` (children blended from their ``k`` nearest guides, k = 1: each copies its
+    nearest guide; ``clump``, ``length_variation`` and ``tip_width`` shape them), ``"strands"`` (the file's
+    strands alone, as one fiber each, ``MAX_WIDENED_RADIUS`` R wide) or ``"disc"`` (children in a disc of
+    radius R around each strand; ``tip_taper`` (0 .. 1) shrinks their offset linearly to (1 - tip_taper) R at
+    the tip, so they gather toward the strand's tip, Blender's Clump)."""
     if method not in METHODS:
         raise ValueError(f"strand reference: method {method!r}; choose one of {', '.join(METHODS)}")
     for name, v in (("tip_taper", tip_taper), ("clump", clump), ("length_variation", length_variation),
@@ -441,7 +443,9 @@ def build(p: Params, virtual_scene: Scene, *, max_instances: int = MAX_INSTANCES
     frac = 1.0 - length_variation * rng.random(total)
     frac[:S] = 1.0
     depth = np.ones(total)                          # on the wall: see the module (how it is drawn)
-    kids = interpolate(guides, roots, n_seg, parents=parents, clump=clump, lengths=frac)
+    if k < 1:
+        raise ValueError(f"strand reference: k = {k}; it must be at least 1")
+    kids = interpolate(guides, roots, n_seg, parents=parents, k=k, clump=clump, lengths=frac)
     ok = (np.linalg.norm(np.diff(kids, axis=1), axis=2) > 1e-12 * max(R, 1e-300)).all(axis=1)
     ok &= np.isfinite(kids).all(axis=(1, 2))
     kids, depth = kids[ok], depth[ok]

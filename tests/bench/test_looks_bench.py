@@ -188,6 +188,17 @@ def test_a_child_rooted_at_a_guide_root_is_that_guide():
     assert np.allclose(kids, strand_reference.resample_guides(wavy_guides(), 8), atol=1e-9)
 
 
+def test_with_one_guide_blended_a_child_is_its_nearest_guide_translated():
+    """k = 1 (the looks-why comparison): the child copies the shape of the guide nearest its root, moved to
+    its root, so it curls as much as that guide whatever its neighbours do."""
+    g = strand_reference.resample_guides(wavy_guides(), 16)
+    rng = np.random.default_rng(4)
+    roots = g[:, 0][rng.integers(0, len(g), 40)] + np.c_[rng.uniform(-0.45, 0.45, (40, 2)), np.zeros(40)]
+    kids = strand_reference.interpolate(g, roots, 16, k=1, clump=0.0)
+    nearest = np.argmin(np.linalg.norm(roots[:, None] - g[None, :, 0], axis=2), axis=1)
+    assert np.allclose(kids - roots[:, None], g[nearest] - g[nearest, :1], atol=1e-9)
+
+
 def test_children_of_two_parallel_straight_guides_lie_between_them():
     t = np.linspace(0.0, 1.0, 5)[:, None]
     g = np.stack([np.array([0.0, 0, 0]) + t * [0.3, 0, 2], np.array([1.0, 0, 0]) + t * [0.3, 0, 2]])
