@@ -20,8 +20,15 @@ orientation difference
     neighbourhood is. Over pixels covered in both pictures (raw hit masks) whose coherence is at least
     ``COHERENCE_MIN`` (0.3) in both, the median absolute angle difference, mod 180 degrees (0 .. 90).
 
-Each groom gets a contact sheet ``DIR/sheet_<groom>.png``: reference | one column per variant, captioned
-with the figures; targets (issue 15): IoU >= 0.9 and orientation <= 10 degrees per groom.
+orientation against the strands (not judged)
+    The same orientation figure against the file's strands alone (``strand_reference`` method "strands"),
+    for every vfiber picture and every reference: does the hair run where the groom's own strands run? A
+    reference is only a fair judge of orientation where it passes this itself; on Curly_100 the interpolated
+    one does not (its children, copies of a hook translated across a disc as wide as the curl, shade into
+    bands that cross the strands).
+
+Each groom gets a contact sheet ``DIR/sheet_<groom>.png``: the strands alone | reference | one column per
+variant, captioned with the figures; targets (issue 15): IoU >= 0.9 and orientation <= 10 degrees per groom.
 """
 
 from __future__ import annotations
@@ -43,9 +50,13 @@ GROOMS = ("sintel_hair.tfx", "Bangs_100.hair", "Ratboy_mohawk.tfx", "harolongo.d
 # label -> --set assignments on top of the groom's own parameters; the strand-controls work adds "after"
 VARIANTS: dict[str, list[str]] = {
     "before": [],
-    # the strand controls together (docs/grooms.md, "The strand controls together"): per-groom defaults,
-    # pointed tips, a soft clump edge
-    "after": ["fibers.groom_auto=true", "strand.tip_width=0.1", "fibers.edge_density=0.3"],
+    # the per-groom fiber defaults alone: the candidate for fibers.groom_auto's default
+    "auto": ["fibers.groom_auto=true"],
+    # the strand controls together (docs/grooms.md, "The strand controls together"): per-groom defaults
+    # (which thin the clump's edge to 0.3 themselves from 4 rings up) and pointed tips. An explicit
+    # fibers.edge_density=0.3 here used to override groom_auto's "no profile under 4 rings" on Ratboy and
+    # harolongo, thinning 3/4 of their 2-ring containers: Ratboy 0.836 -> 0.791 IoU, harolongo 0.959 -> 0.939
+    "after": ["fibers.groom_auto=true", "strand.tip_width=0.1"],
 }
 # the suite's reference (strand_reference.METHODS); the full level also shows "disc", the earlier one, untargeted
 REFERENCE = "interpolated"
@@ -194,6 +205,7 @@ def run(env, cfg: dict, variants: dict[str, list[str]] | None = None) -> list[Ro
     from ..render.camera import Camera
     from ..render.explicit import ExplicitRenderer
     from ..render.renderer import Renderer
+    from ..fibers import ring_layout
     from ..scene.generators import build_scene
     from . import strand_reference
     from .grooms import HAIR_DATA
@@ -217,7 +229,14 @@ def run(env, cfg: dict, variants: dict[str, list[str]] | None = None) -> list[Ro
         ref_frame = strand_reference.render(env.ctx, ref, p, cam, size, explicit)
         refs.append((ref, ref_frame, build_s, time.perf_counter() - t0))
         explicit.release()                      # the next reference's 700 MB of rows is not added to these
+    # the file's strands alone: not judged for coverage, only which way hair runs (STRANDS_CHECK)
+    strands = strand_reference.build(p, scene, method="strands")
+    strands_frame = strand_reference.render(env.ctx, strands, p, cam, size, explicit)
+    explicit.release()
     explicit.release_targets()
+    along = lambda f: round(orientation_agreement(strands_frame.color, strands_frame.ids[..., 0] > 0,
+                                                  f.color, f.ids[..., 0] > 0)[0], 2)
+    ref_along = [along(f) for _, f, _, _ in refs]
     renderer = Renderer(env.ctx)
     rows, shown, scenes = [], [], {_scene_key(p): scene}
     for label, sets in variants.items():
@@ -230,9 +249,13 @@ def run(env, cfg: dict, variants: dict[str, list[str]] | None = None) -> list[Ro
         t0 = time.perf_counter()
         frame = renderer.render_quality(pv, cam, size, outputs=("color", "ids"))
         ms = round(1e3 * (time.perf_counter() - t0), 1)
-        for ref, ref_frame, build_s, ref_s in refs:
+        frame_along = along(frame)
+        drawn = ring_layout(pv).fibers_per_container * scenes[key].n_guides     # this variant's own fibers
+        for (ref, ref_frame, build_s, ref_s), reference_along in zip(refs, ref_along):
             row: Row = {"groom": name, "variant": label, "reference": ref.method, "sets": " ".join(sets),
                         "width": size[0], "height": size[1], **judge(ref_frame, frame),
+                        "strands_deg": frame_along, "reference_strands_deg": reference_along,
+                        "variant_fibers": drawn,
                         "virtual_fibers": ref.virtual_fibers, "reference_fibers": ref.fibers,
                         "reference_strands": ref.strands, "children": round(ref.children),
                         "reference_segments": ref.n_segments, "reference_fiber_radius": round(ref.fiber_radius, 4),
@@ -246,7 +269,8 @@ def run(env, cfg: dict, variants: dict[str, list[str]] | None = None) -> list[Ro
     renderer.release_targets()
     out = getattr(env, "out", None)
     if out:
-        write_sheet(Path(out) / f"sheet_{Path(name).stem}.png", name, [(r, f.color) for r, f, _, _ in refs], shown)
+        write_sheet(Path(out) / f"sheet_{Path(name).stem}.png", name, [(r, f.color) for r, f, _, _ in refs], shown,
+                    (strands, strands_frame.color))
     return rows
 
 
@@ -254,10 +278,13 @@ def _scene_key(p) -> tuple:
     return tuple(sorted((k, str(v)) for k, v in p.values.items() if k.startswith("scene.")))
 
 
-def sheet_tiles(groom: str, refs, shown: list[tuple[str, np.ndarray, Row]]):
-    """The sheet's columns: each reference (``(Reference, picture)``, the suite's own first), then one per
-    variant (label, picture, its row of figures against the first reference)."""
+def sheet_tiles(groom: str, refs, shown: list[tuple[str, np.ndarray, Row]], strands=None):
+    """The sheet's columns: the file's strands alone (``(Reference, picture)``, when given), each reference
+    (the suite's own first), then one per variant (label, picture, its row of figures against the first
+    reference and its angle to the strands)."""
     tiles = []
+    if strands is not None:
+        tiles.append((f"{groom}: its {strands[0].strands:,} file strands alone", strands[1]))
     for ref, color in refs:
         capped = f", capped from {ref.virtual_fibers:,}" if ref.capped else ""
         how = (f"{ref.strands:,} file strands + interpolated children = {ref.fibers:,} fibers{capped}"
@@ -265,16 +292,19 @@ def sheet_tiles(groom: str, refs, shown: list[tuple[str, np.ndarray, Row]]):
                f"{ref.strands:,} file strands x {ref.fibers_per_row:,} disc children = {ref.fibers:,} fibers{capped}")
         tiles.append((f"{groom} reference ({ref.method}): {how}", color))
     for label, color, row in shown:
-        caption = (f"{label}: vfiber {row['virtual_fibers']:,} fibers; IoU {row['iou']:.3f}, orientation "
+        fibers = row.get("variant_fibers", row["virtual_fibers"])
+        caption = (f"{label}: vfiber {fibers:,} fibers; IoU {row['iou']:.3f}, orientation "
                    f"{row['orientation_deg']:.1f} deg")
+        if row.get("strands_deg") is not None:
+            caption += f"; {row['strands_deg']:.1f} deg off the strands"
         tiles.append((caption, color))
     return tiles
 
 
-def write_sheet(path: Path, groom: str, refs, shown) -> Path:
+def write_sheet(path: Path, groom: str, refs, shown, strands=None) -> Path:
     from ..contact_sheet import compose_sheet
 
-    tiles = sheet_tiles(groom, refs, shown)
+    tiles = sheet_tiles(groom, refs, shown, strands)
     path.parent.mkdir(parents=True, exist_ok=True)
     compose_sheet(tiles, path, cols=len(tiles))
     return path
@@ -283,7 +313,9 @@ def write_sheet(path: Path, groom: str, refs, shown) -> Path:
 COLUMNS = [("groom", "groom"), ("variant", "variant"), ("reference", "reference"), ("status", "status"),
            ("iou", "coverage IoU"),
            ("orientation_deg", "orientation median deg"), ("oriented_frac", "compared px"),
-           ("virtual_fibers", "vfiber fibers"), ("reference_fibers", "reference fibers"),
+           ("strands_deg", "vfiber deg vs strands"), ("reference_strands_deg", "reference deg vs strands"),
+           ("variant_fibers", "vfiber fibers"), ("virtual_fibers", "fibers matched by the reference"),
+           ("reference_fibers", "reference fibers"),
            ("children", "children/strand"), ("capped", "capped"), ("reference_fiber_radius", "child radius / R"),
            ("covered_reference", "covered ref"), ("covered_virtual", "covered vfiber"),
            ("luma_reference", "luma ref"), ("luma_virtual", "luma vfiber"),
@@ -298,7 +330,10 @@ NOTES = (f"Reference: the groom's own strands plus child strands (app/bench/stra
          f"shaded luminance (gradient sigma {GRADIENT_SIGMA_PX:g} px, tensor sigma {ORIENTATION_SCALE_PX:g} px), "
          f"median |angle difference| mod 180 deg over pixels covered in both with coherence >= "
          f"{COHERENCE_MIN:g} in both; compared px: that set's fraction of the pixels covered in both. luma: mean "
-         f"Rec. 709 luma of the 8-bit picture over pixels covered in both (not judged; for the colour work). capped: "
+         f"Rec. 709 luma of the 8-bit picture over pixels covered in both (not judged; for the colour work). deg vs "
+         f"strands: the same orientation figure against the file's strands alone (strand_reference method "
+         f"'strands', each strand one fiber 0.25 R wide, no children), for vfiber and for the reference: whether a "
+         f"picture's hair runs where the groom's own strands run (not judged). capped: "
          f"the reference drew fewer fibers than vfiber (strand_reference.MAX_INSTANCES), each widened (child "
          f"radius / R, at the root) to keep the projected cross-section. children/strand: reference fibers per file "
          f"strand. Sheets: sheet_<groom>.png.")

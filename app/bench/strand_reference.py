@@ -46,6 +46,12 @@ drawn at depth 1, on the wall: no self-shadow, no occlusion, the look of ``look.
 depth is stored as d = depth x the row's own axis: P(t) = p0 + t (p1 - p0) + w(t) d then stays on the
 row's axis, and [t0, t1] is solved so that the ribbon runs exactly from joint to joint.
 
+``"strands"``: the file's strands alone, no child, each as one fiber ``MAX_WIDENED_RADIUS`` R wide at full
+width. Not a picture of the hair: too thin for coverage, it is the check the other two (and every vfiber
+variant) are held to, that a picture's hair runs where the groom's own strands run (``looks``: "deg vs
+strands"). It is what showed that on Curly_100 the interpolated reference's shading bands run across the
+strands (about 50 degrees off them), not along them.
+
 Same camera (``Camera.from_params`` of the virtual scene), same light, same look parameters.
 
 Count. As many fibers as the virtual renderer draws with the same parameters, unless fibers x pieces would
@@ -71,7 +77,7 @@ MAX_INSTANCES = 8_000_000      # ribbons (strand pieces x children): 96 MB of in
 MAX_SEGMENTS = 24              # pieces per strand: a strand keeps its own vertices up to this many
 MAX_WIDENED_RADIUS = 0.25      # a widened child is at most this fraction of R: past it a child is a tube
 SEED = 15
-METHODS = ("interpolated", "disc")
+METHODS = ("interpolated", "disc", "strands")
 K_GUIDES = 4                   # guides blended per interpolated child
 NEIGHBOUR_CANDIDATES = 16      # a child's blended guides are sought among its root guide's nearest this many
 CLUMP = 0.25                   # interpolated children: pulled this far toward the nearest guide at the tip
@@ -371,14 +377,16 @@ def _interpolated_rows(children: np.ndarray, R: float, tip_width: float, origin:
 
 def build(p: Params, virtual_scene: Scene, *, max_instances: int = MAX_INSTANCES, seed: int = SEED,
           method: str = "interpolated", tip_taper: float = 0.0, clump: float = CLUMP,
-          length_variation: float = LENGTH_VARIATION, tip_width: float = TIP_WIDTH) -> Reference:
+          length_variation: float = LENGTH_VARIATION, tip_width: float = TIP_WIDTH,
+          k: int = K_GUIDES) -> Reference:
     """The reference strands of the groom ``p["scene.groom_file"]`` beside its virtual scene under ``p``
     (whose container radius and origin it takes, and whose fiber count it matches, see the module).
 
-    ``method``: ``"interpolated"`` (children blended from their nearest guides; ``clump``,
-    ``length_variation`` and ``tip_width`` shape them) or ``"disc"`` (children in a disc of radius R around
-    each strand; ``tip_taper`` (0 .. 1) shrinks their offset linearly to (1 - tip_taper) R at the tip, so
-    they gather toward the strand's tip, Blender's Clump)."""
+    ``method``: ``"interpolated"`` (children blended from their ``k`` nearest guides, k = 1: each copies its
+    nearest guide; ``clump``, ``length_variation`` and ``tip_width`` shape them), ``"strands"`` (the file's
+    strands alone, as one fiber each, ``MAX_WIDENED_RADIUS`` R wide) or ``"disc"`` (children in a disc of
+    radius R around each strand; ``tip_taper`` (0 .. 1) shrinks their offset linearly to (1 - tip_taper) R at
+    the tip, so they gather toward the strand's tip, Blender's Clump)."""
     if method not in METHODS:
         raise ValueError(f"strand reference: method {method!r}; choose one of {', '.join(METHODS)}")
     for name, v in (("tip_taper", tip_taper), ("clump", clump), ("length_variation", length_variation),
@@ -425,22 +433,28 @@ def build(p: Params, virtual_scene: Scene, *, max_instances: int = MAX_INSTANCES
     S = len(guides)
     wanted = max(S, virtual_fibers)
     total = int(max(S, min(wanted, max_instances // n_seg)))
-    if total < wanted:
+    if method == "strands":
+        # every child i < S is guide i itself (child_roots, interpolate): the file's strands and nothing else
+        total, fiber_radius, length_variation, tip_width, clump = S, MAX_WIDENED_RADIUS, 0.0, 1.0, 0.0
+    elif total < wanted:
         fiber_radius = min(MAX_WIDENED_RADIUS, fiber_radius * wanted / total)
     roots, parents = child_roots(guides, total, seed)
     rng = np.random.default_rng(seed + 2)
     frac = 1.0 - length_variation * rng.random(total)
     frac[:S] = 1.0
     depth = np.ones(total)                          # on the wall: see the module (how it is drawn)
-    kids = interpolate(guides, roots, n_seg, parents=parents, clump=clump, lengths=frac)
+    if k < 1:
+        raise ValueError(f"strand reference: k = {k}; it must be at least 1")
+    kids = interpolate(guides, roots, n_seg, parents=parents, k=k, clump=clump, lengths=frac)
     ok = (np.linalg.norm(np.diff(kids, axis=1), axis=2) > 1e-12 * max(R, 1e-300)).all(axis=1)
     ok &= np.isfinite(kids).all(axis=(1, 2))
     kids, depth = kids[ok], depth[ok]
     rows = _interpolated_rows(kids, R, tip_width, virtual_scene.origin)
     records = axial_records(rows, depth, seed)
     scene = Scene(rows, virtual_scene.origin, f"{groom.path.stem} interpolated strands", len(kids))
-    return Reference(scene, records, S, n_seg, len(kids), 1, fiber_radius, virtual_fibers, total < wanted,
-                     "interpolated", clump=clump, length_variation=length_variation, tip_width=tip_width,
+    return Reference(scene, records, S, n_seg, len(kids), 1, fiber_radius, virtual_fibers,
+                     method != "strands" and total < wanted, method, clump=clump,
+                     length_variation=length_variation, tip_width=tip_width,
                      dropped=int((~ok).sum()))
 
 

@@ -188,6 +188,17 @@ def test_a_child_rooted_at_a_guide_root_is_that_guide():
     assert np.allclose(kids, strand_reference.resample_guides(wavy_guides(), 8), atol=1e-9)
 
 
+def test_with_one_guide_blended_a_child_is_its_nearest_guide_translated():
+    """k = 1 (the looks-why comparison): the child copies the shape of the guide nearest its root, moved to
+    its root, so it curls as much as that guide whatever its neighbours do."""
+    g = strand_reference.resample_guides(wavy_guides(), 16)
+    rng = np.random.default_rng(4)
+    roots = g[:, 0][rng.integers(0, len(g), 40)] + np.c_[rng.uniform(-0.45, 0.45, (40, 2)), np.zeros(40)]
+    kids = strand_reference.interpolate(g, roots, 16, k=1, clump=0.0)
+    nearest = np.argmin(np.linalg.norm(roots[:, None] - g[None, :, 0], axis=2), axis=1)
+    assert np.allclose(kids - roots[:, None], g[nearest] - g[nearest, :1], atol=1e-9)
+
+
 def test_children_of_two_parallel_straight_guides_lie_between_them():
     t = np.linspace(0.0, 1.0, 5)[:, None]
     g = np.stack([np.array([0.0, 0, 0]) + t * [0.3, 0, 2], np.array([1.0, 0, 0]) + t * [0.3, 0, 2]])
@@ -273,8 +284,14 @@ def test_suite_smoke_on_one_groom(ctx, tmp_path):
     cfg = SUITES["looks"].configs("smoke")[0]
     env = Env(ctx, reps=1, warmup=0, level="smoke", out=str(tmp_path))
     rows = SUITES["looks"].run(env, cfg)
-    assert [(r["variant"], r["reference"]) for r in rows] == [("before", "interpolated"), ("after", "interpolated")]
-    assert rows[1]["sets"] == " ".join(looks.VARIANTS["after"]) and rows[1]["iou"] != rows[0]["iou"]
+    r0_fibers = rows[0]["virtual_fibers"]
+    assert [(r["variant"], r["reference"]) for r in rows] == [(v, "interpolated") for v in looks.VARIANTS]
+    assert rows[2]["sets"] == " ".join(looks.VARIANTS["after"]) and rows[2]["iou"] != rows[0]["iou"]
+    # every picture is also held to the file's strands alone: a finite angle, and not the same for all
+    assert all(0.0 <= r["strands_deg"] <= 90.0 and 0.0 <= r["reference_strands_deg"] <= 90.0 for r in rows)
+    assert len({r["strands_deg"] for r in rows}) > 1
+    # each variant counts its own fibers: groom_auto draws far fewer than the defaults the reference matches
+    assert rows[0]["variant_fibers"] == r0_fibers and rows[1]["variant_fibers"] < r0_fibers
     r = rows[0]
     assert 0.0 < r["iou"] <= 1.0 and 0.0 < r["covered_reference"] and 0.0 < r["covered_virtual"]
     assert r["virtual_fibers"] == 360_000 and r["capped"] == "yes"
@@ -285,10 +302,31 @@ def test_suite_smoke_on_one_groom(ctx, tmp_path):
     from app.contact_sheet import labels_of, layout_of
 
     labels = labels_of(sheet)
-    assert len(labels) == 3 and labels[0].startswith("Curly_100.ply reference (interpolated)")
-    assert labels[1].startswith("before") and labels[2].startswith("after")
+    assert len(labels) == 5 and labels[0] == "Curly_100.ply: its 100 file strands alone"
+    assert labels[1].startswith("Curly_100.ply reference (interpolated)")
+    assert [x.split(":")[0] for x in labels[2:]] == list(looks.VARIANTS) and "off the strands" in labels[2]
     boxes, _ = layout_of(sheet)
-    assert boxes[0][1] == boxes[1][1] == boxes[2][1]                # one row: reference | before | after
+    assert len({b[1] for b in boxes}) == 1                  # one row: strands | reference | before | auto | after
+
+
+def test_strands_reference_is_the_file_strands_alone():
+    from app.bench.grooms import HAIR_DATA
+    from app.presets import resolve_params
+    from app.scene.generators import build_scene
+    from app.scene.grooms import load_groom, resample_many
+
+    if not (HAIR_DATA / "Curly_100.ply").exists():
+        pytest.skip(f"{HAIR_DATA}: shared hair data not found")
+    p, _ = resolve_params(str(HAIR_DATA / "Curly_100.ply"), [])
+    scene = build_scene(p)
+    ref = strand_reference.build(p, scene, method="strands")
+    assert ref.method == "strands" and ref.fibers == ref.strands == 100 and not ref.capped
+    assert ref.fiber_radius == strand_reference.MAX_WIDENED_RADIUS and ref.tip_width == 1.0
+    rows = ref.scene.segments.reshape(100, ref.n_segments, 20)
+    groom = load_groom(p["scene.groom_file"], up=p["scene.groom_up"], scale=p["scene.groom_scale"])
+    want = resample_many(groom.strands, ref.n_segments) - scene.origin
+    assert np.allclose(rows[:, :, 0:3], want[:, :-1], atol=1e-3 * float(np.median(rows[:, 0, 3])))
+    assert (rows[:, :, 3] == rows[:, :, 7]).all()                  # full width to the tip: no taper
 
 
 def test_set_fibers_refuses_records_that_do_not_fit_the_rows(ctx):

@@ -372,7 +372,8 @@ def test_groom_auto_is_off_by_default():
 @pytest.mark.parametrize("name", SHARED)
 def test_groom_auto_fibers_are_a_pixel_or_less_and_fill_the_core(name):
     """Against the camera itself: at the default camera and 640x360 each fiber is 0.3 .. 1 px wide, or as
-    wide as its ring allows; the core is opaque (about CORE_DEPTH fibers deep along a diameter)."""
+    wide as its ring allows; the core is opaque (about CORE_DEPTH fibers deep along a diameter, more for
+    containers under SMALL_CONTAINER_PX in radius: core_depth)."""
     from app.presets import resolve_params
     from app.scene.grooms import defaults, scene_from_groom
 
@@ -390,9 +391,27 @@ def test_groom_auto_fibers_are_a_pixel_or_less_and_fill_the_core(name):
     core = slice(lay.rings // 2, lay.rings)
     area = 2.0 * np.pi * lay.rho[core] / lay.rings
     depth = float(lay.n[core].sum() / area.sum()) * 4.0 * lay.fiber_radius
-    assert depth == pytest.approx(defaults.CORE_DEPTH, rel=0.25)
+    assert depth == pytest.approx(defaults.core_depth(R / pixel), rel=0.25)
     if lay.rings >= defaults.EDGE_MIN_RINGS:
         assert p["fibers.edge_density"] < 1
+
+
+def test_small_containers_keep_the_fibers_per_pixel_of_a_two_pixel_one():
+    from app.scene.grooms import defaults
+
+    small = defaults.SMALL_CONTAINER_PX
+    assert defaults.core_depth(small) == defaults.core_depth(20.0) == defaults.CORE_DEPTH
+    # fibers of a fixed width in px: a container holds depth x r_px^2 of them, and their summed width per
+    # pixel of its diameter (what pixel centres see when there is no opaque core) is depth x r_px / 2
+    per_px = lambda ratio: defaults.core_depth(ratio) * ratio / 2
+    for ratio in (1.5, 1.0, 0.5, 0.25):
+        assert per_px(ratio) == pytest.approx(per_px(small))
+    assert per_px(4.0) > per_px(small)                      # above it the core is opaque: depth alone counts
+    # and the layout follows: at the same rings and fiber radius, a 1 px container gets twice the fibers per
+    # unit area of a 2 px one (so half as many fibers in all, not a quarter)
+    one = defaults.auto_fibers(1.0, 1.0, rings=2, fiber_radius=0.2)
+    two = defaults.auto_fibers(2.0, 1.0, rings=2, fiber_radius=0.2)
+    assert one["fibers.phi_step"] == pytest.approx(two["fibers.phi_step"] / 2, rel=1e-3)
 
 
 @needs_data

@@ -10,7 +10,9 @@ camera, which frames the whole groom: ``PX_PER_HALF_DIAGONAL`` x half the groom'
   fraction of R), but never more than ``MAX_RING_FILL`` of a ring's width;
 * rings: about one per pixel of container radius, 2 .. 10 (a container one pixel across needs no ten rings);
 * spacing: equal arc length on every ring (even_spacing 1: the same fibers per area from core to rim) and as
-  many fibers as make the core opaque, ``CORE_DEPTH`` fibers deep along a ray through the axis;
+  many fibers as make the core opaque, ``CORE_DEPTH`` fibers deep along a ray through the axis; containers
+  under ``SMALL_CONTAINER_PX`` in radius have no opaque core and get deeper, so that their fibers' summed
+  width per pixel of container width stays what a container of that size has (:func:`core_depth`);
 * the clump profile: the outer ``EDGE_WIDTH`` of the radius thins to ``EDGE_DENSITY``, so no container
   shows a wall and neighbours blend (from ``EDGE_MIN_RINGS`` rings up).
 
@@ -35,6 +37,14 @@ box, so it varies a little with the shape)."""
 FIBER_WIDTH_PX = 0.5
 MAX_RING_FILL = 0.8            # a fiber's diameter at most this fraction of its ring's width
 CORE_DEPTH = 10.0              # fibers a ray through the axis meets on average (6 left Curly 27 deg off)
+SMALL_CONTAINER_PX = 2.0
+"""Below this radius in pixels a container has no opaque core to speak of: every pixel it covers is a rim
+pixel, hit about as often as its fibers' summed width across the container per pixel of the container's
+width. With fibers of a fixed width in pixels that is depth x radius_px / 2, so a smaller container keeps
+the value of one this size and its depth grows as 1 / radius (half the fibers at half the radius, not a
+quarter). Ratboy_mohawk's 0.99 px containers at depth 10 lost coverage against the strand reference (IoU
+0.895, against 0.906 with vfiber's plain defaults); at 20 they keep it (0.903): its spikes are one or two
+containers across."""
 MIN_RINGS, MAX_RINGS = 2, 10
 EDGE_DENSITY, EDGE_WIDTH = 0.3, 0.5
 EDGE_MIN_RINGS = 4             # fewer rings are too coarse for a profile: thinning ring 0 of 2 thins 3/4 of the area
@@ -49,6 +59,12 @@ class GroomDefaults:
     reason: str
 
 
+def core_depth(ratio: float) -> float:
+    """Fibers a ray through the axis meets, for containers ``ratio`` pixels in radius (see
+    :data:`SMALL_CONTAINER_PX`)."""
+    return CORE_DEPTH * max(1.0, SMALL_CONTAINER_PX / ratio)
+
+
 def auto_fibers(radius: float, pixel: float, rings: int | None = None, fiber_radius: float | None = None) -> dict:
     """The fiber parameters for containers of radius ``radius`` seen at ``pixel`` world units a pixel;
     ``rings`` or ``fiber_radius`` given (a person's) are kept, and the rest follow from them."""
@@ -60,7 +76,7 @@ def auto_fibers(radius: float, pixel: float, rings: int | None = None, fiber_rad
     if fiber_radius <= 0:
         return {"fibers.rings": rings, "fibers.fiber_radius": fiber_radius}   # no fibers: nothing to space
     # per unit area of the unit disc: a ray along a diameter (length 2) sweeps 2 * (2 r) of area
-    per_area = CORE_DEPTH / (4.0 * fiber_radius)
+    per_area = core_depth(ratio) / (4.0 * fiber_radius)
     # with even spacing ring i holds 360 rho_i / (phi_step rho_0) fibers on an annulus of area 2 pi rho_i / K
     rho0 = 1.0 - 0.5 / rings
     phi_step = float(np.clip(360.0 * rings / (2.0 * math.pi * rho0 * per_area), 0.01, 180.0))
@@ -84,8 +100,9 @@ def groom_defaults(p: Params, given: set[str] | frozenset[str] = frozenset()) ->
     applied = {k: v for k, v in values.items() if k not in given}
     reason = (f"containers {radius / pixel:.2f} px in radius at the default camera (640x360): fibers "
               f"{2 * values['fibers.fiber_radius'] * radius / pixel:.2f} px wide, {values['fibers.rings']} rings, "
-              f"{CORE_DEPTH:g} fibers deep through the core, the outer {values['fibers.edge_width']:g} of the "
-              f"radius at {values['fibers.edge_density']:g} of the core's density")
+              f"{core_depth(radius / pixel):.3g} fibers deep through the core, the outer "
+              f"{values['fibers.edge_width']:g} of the radius at {values['fibers.edge_density']:g} of the core's "
+              f"density")
     out = p.replace(**applied)
     return out, GroomDefaults(values, applied, radius, pixel, reason)
 
