@@ -56,6 +56,7 @@ MODES: dict[str, tuple[dict, int]] = {
     "msaa 2": ({"quality.msaa": 2}, 0),
     "msaa 4": ({"quality.msaa": 4}, 0),
     "viewer accumulation 16": ({}, 4),
+    "filtered": ({"quality.filter": "coverage"}, 0),
 }
 SCENES = ("default", "fur-ball far", "sintel_hair.tfx")
 
