@@ -34,7 +34,9 @@
 #define COVER_SAMPLES 6     // slots a footprint samples per ring before it thins them (see cover_straight)
 #endif
 #define COVER_WU_MAX 1.0    // footprint half-width, unit space: past a container's radius a fiber is a medium
-#define COVER_OPAQUE 0.004  // transmittance at which the scan stops: the rest is hidden
+#ifndef COVER_OPAQUE
+#define COVER_OPAQUE 0.03   // transmittance at which the scan stops (see cover_straight: alpha)
+#endif
 
 uniform float uFootprint;   // footprint half-width per unit distance: quality.filter_width * the pixel angle
 uniform int uCoverOn;       // 0: this draw adds no colour (the fiber ranges after the first, renderer.py)
@@ -214,7 +216,9 @@ CoverBlend cover_straight(Segment seg, UnitRay ur, float wu, vec3 Lu, vec2 densi
         if (T < COVER_OPAQUE) break;
     }
     float inv = sw > 0.0 ? 1.0 / sw : 0.0;
-    b.alpha = 1.0 - T;
+    // the scan stops once less than COVER_OPAQUE of the footprint shows through: alpha reaches 1 there and
+    // runs on continuously from it (1 - T rescaled), so where the stop falls makes no step in the picture
+    b.alpha = 1.0 - max(T - COVER_OPAQUE, 0.0) / (1.0 - COVER_OPAQUE);
     // the mean centre's direction at the mean depth in the container: the mean of centres on an arc lies
     // inside it, and occlusion and the self-shadow estimate would darken a footprint the fibers do not
     float lc = length(sc);

@@ -72,7 +72,7 @@ void main() {
     gBoundGrow = uFootprint;
     vec4 accum = imageLoad(uAccum, px);
     // until the footprint is opaque every container it meets adds colour, behind the nearest fiber too
-    float cut = accum.a >= 1.0 - COVER_OPAQUE ? walk_cut(bestT) : INF;
+    float cut = accum.a >= 0.999 ? walk_cut(bestT) : INF;
 #else
     float cut = walk_cut(bestT);
 #endif
@@ -125,7 +125,7 @@ void main() {
     imageStore(uAccum, px, accum);
     imageStore(uAccumFront, px, vec4(cb.alpha > 0.0 ? min(front, tc) : front));
 #endif
-    cut = accum.a >= 1.0 - COVER_OPAQUE ? walk_cut(bestT) : INF;
+    cut = accum.a >= 0.999 ? walk_cut(bestT) : INF;
 #else
     cut = walk_cut(bestT);
 #endif
