@@ -291,6 +291,32 @@ def contact_sheet(per_scene: list[tuple[str, dict, str]], path: Path, zoom: int 
     Image.fromarray(np.concatenate(tiles, 0)).save(path)
 
 
+TURN_DEGREES = 0.5     # turntable_change: two frames of a 720-frame turn
+
+
+def turntable_change(s: Subject, size, path: Path) -> None:
+    """What a turntable shows: per quality.filter (off, coverage) a frame and its change to the next frame of
+    a slow turn (TURN_DEGREES about the target, parallax included), x4. Saved as one PNG for the docs."""
+    from PIL import ImageDraw
+
+    from ..render.camera import Camera
+
+    tiles = []
+    for f in ("off", "coverage"):
+        frames = []
+        for az in (s.p["camera.azimuth"], s.p["camera.azimuth"] + TURN_DEGREES):
+            q = _mode_params(s, "none").replace(**{"camera.azimuth": az, "quality.filter": f})
+            cam = Camera.from_params(q, s.renderer.scene, size[0] / size[1])
+            frames.append(s.renderer.render(q, cam, size, outputs=("color",)).color.astype(np.int32))
+        change = np.clip(np.abs(frames[1] - frames[0]).max(-1, keepdims=True) * 4, 0, 255).repeat(3, -1)
+        im = Image.fromarray(np.concatenate([frames[0], change], 1).astype(np.uint8))
+        ImageDraw.Draw(im).text((4, 2), f"{s.name}, quality.filter = {f}: frame | change to the next frame "
+                                f"({TURN_DEGREES:g} deg) x4", fill=(255, 255, 0))
+        tiles.append(np.asarray(im))
+    sheet = Image.fromarray(np.concatenate(tiles, 0))
+    sheet.resize((sheet.width * 2, sheet.height * 2), Image.NEAREST).save(path)
+
+
 def plot(rows: list[dict], path: Path) -> None:
     import matplotlib
 
@@ -337,6 +363,9 @@ def write_outputs(rows: list[dict], per_scene, out: Path, header: str) -> None:
              "itself does under the move.", "",
              "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
     lines += ["| " + " | ".join(fmt(r[k]) for k in COLUMNS) + " |" for r in rows]
+    if (out / "turntable_change.png").exists():
+        lines += ["", "![a slow turntable, unfiltered and filtered: a frame and its change to the next]"
+                      "(turntable_change.png)"]
     lines += ["", "Best existing mode per scene (lowest stability figure): "
               + ", ".join(f"{n}: {b}" for n, _, b in per_scene) + ".",
               "", "![stability against cost](antialias.png)", "",
@@ -363,6 +392,9 @@ def run(size=(320, 180), reps: int = 5, scenes=SCENES, ref_n: int = REFERENCE_N,
             print(f"{name}: {time.perf_counter() - t:.0f} s", flush=True)
             rows += r
             per_scene.append((name, pics, best_mode(r)))
+            if out is not None and name == SCENES[-1] and FILTERED in MODES:
+                out.mkdir(parents=True, exist_ok=True)
+                turntable_change(s, size, out / "turntable_change.png")
             s.renderer.release_targets()
         if out is not None:
             header = (f"Date {date.today()}, commit {short_commit()}, `{command}`. Machine: "
