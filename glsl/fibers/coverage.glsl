@@ -204,7 +204,7 @@ CoverBlend cover_straight(Segment seg, UnitRay ur, float wu, vec3 Lu, vec2 densi
             vec2 q = c + radial;
             float qb = dot(q, l2);
             float path = ll > 0.0 ? (-qb + sqrt(max(qb * qb - ll * (dot(q, q) - 1.0), 0.0))) * invL : INF;
-            sl += w * exp(-density.x * max(path, 0.0));
+            sl += w * (density.x > 0.0 ? exp(-density.x * max(path, 0.0)) : 1.0);   // no 0 * INF
             so += w * mix(1.0, exp(-3.0 * (1.0 - length(c))), density.y);
             sc += w * c;
             sd += w * length(c);
@@ -222,7 +222,7 @@ CoverBlend cover_straight(Segment seg, UnitRay ur, float wu, vec3 Lu, vec2 densi
     // the mean centre's direction at the mean depth in the container: the mean of centres on an arc lies
     // inside it, and occlusion and the self-shadow estimate would darken a footprint the fibers do not
     float lc = length(sc);
-    b.c = lc > 0.0 ? sc * (sd / lc) : vec2(0.0);
+    b.c = lc > 0.0 ? sc * (sd * inv / lc) : vec2(0.0);
     b.radial = sr * inv;
     b.s = ss * inv;
     b.tint = st * inv;

@@ -89,6 +89,8 @@ EXTREMES = {
     "grazing-level": {"camera.elevation": 0.0},
     "narrow-footprint": {"quality.filter_width": 0.25},
     "wide-footprint": {"quality.filter_width": 4.0, "camera.distance": 40.0},
+    "light-along-the-fibers-no-shadow": {"look.light_elevation": 89.0, "look.self_shadow": "off"},
+    "traced-shadows": {"look.self_shadow": "traced"},
     # 64 rings of 0.01 degree fibers: the exact traversal needs 11 draw ranges, the coverage scan runs in the
     # first (it takes whole rings, thinned)
     "many-draw-ranges": {"fibers.rings": 64, "fibers.phi_step": 0.01, "fibers.fiber_radius": 0.5 / 64},
