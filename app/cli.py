@@ -297,6 +297,8 @@ def cmd_turntable(args) -> int:
     p, label = target_params(args)
     if args.mode:
         p = p.replace(**{"quality.mode": args.mode})
+    if args.filter:
+        p = p.replace(**{"quality.filter": args.filter})
     if args.frames < 1 or args.frames > 3600:
         raise UsageError(f"--frames {args.frames}: between 1 and 3600")
     out = Path(args.output_dir)
@@ -428,6 +430,9 @@ def make_parser() -> argparse.ArgumentParser:
     t.add_argument("--degrees", type=float, default=360.0, help="how far the camera turns (default 360)")
     t.add_argument("--size", default="640x360", help="WIDTHxHEIGHT (default 640x360)")
     t.add_argument("--mode", choices=("fast", "exact", "brute"))
+    t.add_argument("--filter", choices=("off", "coverage"),
+                   help="quality.filter: coverage keeps thin fibers from shimmering as the camera turns "
+                        "(docs/antialias.md)")
     t.add_argument("--alpha", action="store_true", help="RGBA frames, coverage as alpha")
     t.add_argument("--no-video", action="store_true", help="frames only, even where ffmpeg is installed")
     t.add_argument("--light", action="store_true", help="turn the lights (light.rig_rotation), not the camera")

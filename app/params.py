@@ -246,6 +246,12 @@ SPEC: tuple[Param, ...] = (
       "fiber (reference)", choices=("fast", "exact", "brute")),
     P("quality.supersample", int, 1, "n x n stratified rays per pixel", 1, 4),
     P("quality.msaa", int, 0, "MSAA samples for coverage (0 = off)", 0, 8),
+    P("quality.filter", str, "off", "antialias thin fibers by their coverage: each pixel's ray is a cone and "
+      "every fiber it meets adds the share of its footprint that fiber covers (exact mode, straight fibers; "
+      "ids and depth stay the nearest fiber's); off: one ray, the nearest fiber's colour",
+      choices=("off", "coverage")),
+    P("quality.filter_width", float, 1.0, "half-width of the filtered mode's tent footprint: wider holds "
+      "still better under camera moves, narrower is sharper", 0.25, 4.0, "pixels"),
     P("quality.render_scale", float, 1.0, "fraction of the output resolution actually ray cast", 0.1, 1.0),
     P("quality.visibility", str, "auto", "how a pixel finds its containers: proxies (each container drawn, "
       "a traversal per layer: fastest where few overlap), walk (a hierarchy walked nearest first: fastest "

@@ -511,3 +511,19 @@ def shaped_nearest_segment(sh: Shape, lay: RingLayout, seg: Segment, ur: UnitRay
                 best_ring[r[upd]] = i
                 best_j[r[upd]] = k[upd]
     return best_s, best_ring, best_j
+
+
+# --- the filtered mode's coverage (glsl/fibers/coverage.glsl) ----------------------------------------------
+def tent_cdf(v):
+    """The share of a unit tent (half-width 1, area 1) below ``v``: 0 at -1, 1/2 at 0, 1 at 1."""
+    v = np.clip(np.asarray(v, np.float64), -1.0, 1.0)
+    return np.where(v <= 0.0, 0.5 * (1.0 + v) ** 2, 1.0 - 0.5 * (1.0 - v) ** 2)
+
+
+def footprint_coverage(x, r, w):
+    """The share of a tent footprint of half-width ``w``, centred ``x`` from a fiber's axis, that the fiber
+    (a band of half-width ``r`` across the footprint) covers: the integral of the tent over [-r, r]."""
+    x, r, w = (np.asarray(a, np.float64) for a in (x, r, w))
+    with np.errstate(over="ignore", invalid="ignore"):
+        inv = 1.0 / np.maximum(w, 1e-30)
+        return np.clip(tent_cdf((r - x) * inv) - tent_cdf((-r - x) * inv), 0.0, 1.0)

@@ -2,7 +2,8 @@
 
 Issue 16 asks for a filtered mode whose sub-pixel fibers hold still; this bench measures the antialias modes
 that exist today so that mode has something to beat. Per scene (the default preset, the fur-ball seen from
-a distance, sintel_hair.tfx) and per mode (none, supersample 2/3/4, MSAA 2/4, the viewer's accumulation):
+a distance, sintel_hair.tfx) and per mode (none, supersample 2/3/4, MSAA 2/4, the viewer's accumulation, and
+the filtered mode, quality.filter = coverage):
 
   stability  the share of covered pixels whose colour changes by more than 4/255 (any channel, 8-bit sRGB
              levels) when the camera moves a tenth of a pixel: the renderer's ``offset=(0.1, 0)``, which shifts
@@ -56,7 +57,11 @@ MODES: dict[str, tuple[dict, int]] = {
     "msaa 2": ({"quality.msaa": 2}, 0),
     "msaa 4": ({"quality.msaa": 4}, 0),
     "viewer accumulation 16": ({}, 4),
+    # issue 16's filtered mode (glsl/fibers/coverage.glsl): a tent footprint of a pixel's half-width
+    "filtered": ({"quality.filter": "coverage"}, 0),
+    "filtered 0.6 px": ({"quality.filter": "coverage", "quality.filter_width": 0.6}, 0),   # sharper, less still
 }
+FILTERED = "filtered"
 SCENES = ("default", "fur-ball far", "sintel_hair.tfx")
 
 
@@ -225,8 +230,10 @@ def measure_scene(s: Subject, size, reps: int, ref_n: int = REFERENCE_N) -> tupl
 
 
 def best_mode(rows: list[dict]) -> str:
-    """The existing mode with the lowest stability figure (ties: the lower mean error)."""
-    cands = [r for r in rows if not r["mode"].startswith("reference") and r["mode"] != "none"]
+    """The existing mode with the lowest stability figure (ties: the lower mean error); the filtered mode is
+    what they are held against, not one of them."""
+    cands = [r for r in rows if not r["mode"].startswith("reference") and r["mode"] != "none"
+             and not r["mode"].startswith(FILTERED)]
     return min(cands, key=lambda r: (r["stability_changed_pct"], r["error_mean_levels"]))["mode"]
 
 
@@ -245,9 +252,9 @@ def _crop_box(covered: np.ndarray, cw: int, ch: int) -> tuple[int, int]:
 
 
 def contact_sheet(per_scene: list[tuple[str, dict, str]], path: Path, zoom: int = 4) -> None:
-    """Rows: scenes. Columns: reference | none | best mode | the viewer's accumulation | change after the
-    0.1 px move (x4) of none and of the best mode; crops of the most covered part, enlarged ``zoom`` x by
-    nearest neighbour."""
+    """Rows: scenes. Columns: reference | none | best existing mode | the viewer's accumulation | filtered |
+    change after the 0.1 px move (x4) of none, of the best mode and of the filtered mode; crops of the most
+    covered part, enlarged ``zoom`` x by nearest neighbour."""
     from PIL import ImageDraw
 
     tiles = []
@@ -267,7 +274,10 @@ def contact_sheet(per_scene: list[tuple[str, dict, str]], path: Path, zoom: int 
         # the proxies (default preset) it is not, and the columns stay aligned either way
         acc = "viewer accumulation 16"
         cols.append((acc, crop(pics[acc])))
+        filt = [FILTERED] if FILTERED in pics else []
+        cols += [(m, crop(pics[m])) for m in filt]
         cols += [("none: change x4", crop(diff("none"))), (f"{best}: change x4", crop(diff(best)))]
+        cols += [(f"{m}: change x4", crop(diff(m))) for m in filt]
         row = []
         for label, a in cols:
             im = Image.fromarray(np.clip(np.round(a), 0, 255).astype(np.uint8)).resize((cw * zoom, ch * zoom),
@@ -279,6 +289,32 @@ def contact_sheet(per_scene: list[tuple[str, dict, str]], path: Path, zoom: int 
     width = max(t.shape[1] for t in tiles)
     tiles = [np.pad(t, ((0, 4), (0, width - t.shape[1]), (0, 0)), constant_values=255) for t in tiles]
     Image.fromarray(np.concatenate(tiles, 0)).save(path)
+
+
+TURN_DEGREES = 0.5     # turntable_change: two frames of a 720-frame turn
+
+
+def turntable_change(s: Subject, size, path: Path) -> None:
+    """What a turntable shows: per quality.filter (off, coverage) a frame and its change to the next frame of
+    a slow turn (TURN_DEGREES about the target, parallax included), x4. Saved as one PNG for the docs."""
+    from PIL import ImageDraw
+
+    from ..render.camera import Camera
+
+    tiles = []
+    for f in ("off", "coverage"):
+        frames = []
+        for az in (s.p["camera.azimuth"], s.p["camera.azimuth"] + TURN_DEGREES):
+            q = _mode_params(s, "none").replace(**{"camera.azimuth": az, "quality.filter": f})
+            cam = Camera.from_params(q, s.renderer.scene, size[0] / size[1])
+            frames.append(s.renderer.render(q, cam, size, outputs=("color",)).color.astype(np.int32))
+        change = np.clip(np.abs(frames[1] - frames[0]).max(-1, keepdims=True) * 4, 0, 255).repeat(3, -1)
+        im = Image.fromarray(np.concatenate([frames[0], change], 1).astype(np.uint8))
+        ImageDraw.Draw(im).text((4, 2), f"{s.name}, quality.filter = {f}: frame | change to the next frame "
+                                f"({TURN_DEGREES:g} deg) x4", fill=(255, 255, 0))
+        tiles.append(np.asarray(im))
+    sheet = Image.fromarray(np.concatenate(tiles, 0))
+    sheet.resize((sheet.width * 2, sheet.height * 2), Image.NEAREST).save(path)
 
 
 def plot(rows: list[dict], path: Path) -> None:
@@ -327,11 +363,14 @@ def write_outputs(rows: list[dict], per_scene, out: Path, header: str) -> None:
              "itself does under the move.", "",
              "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
     lines += ["| " + " | ".join(fmt(r[k]) for k in COLUMNS) + " |" for r in rows]
+    if (out / "turntable_change.png").exists():
+        lines += ["", "![a slow turntable, unfiltered and filtered: a frame and its change to the next]"
+                      "(turntable_change.png)"]
     lines += ["", "Best existing mode per scene (lowest stability figure): "
               + ", ".join(f"{n}: {b}" for n, _, b in per_scene) + ".",
               "", "![stability against cost](antialias.png)", "",
-              "![contact sheet: reference | none | best | viewer accumulation | change after the move x4: "
-              "none, best](contact_sheet.png)", ""]
+              "![contact sheet: reference | none | best | viewer accumulation | filtered | change after the "
+              "move x4: none, best, filtered](contact_sheet.png)", ""]
     (out / "README.md").write_text("\n".join(lines))
     plot(rows, out / "antialias.png")
     contact_sheet(per_scene, out / "contact_sheet.png")
@@ -353,6 +392,9 @@ def run(size=(320, 180), reps: int = 5, scenes=SCENES, ref_n: int = REFERENCE_N,
             print(f"{name}: {time.perf_counter() - t:.0f} s", flush=True)
             rows += r
             per_scene.append((name, pics, best_mode(r)))
+            if out is not None and name == SCENES[-1] and FILTERED in MODES:
+                out.mkdir(parents=True, exist_ok=True)
+                turntable_change(s, size, out / "turntable_change.png")
             s.renderer.release_targets()
         if out is not None:
             header = (f"Date {date.today()}, commit {short_commit()}, `{command}`. Machine: "

@@ -62,6 +62,10 @@ MSAA_PATTERNS = {
     8: [(1, -3), (-1, 3), (5, 1), (-3, -5), (-5, 5), (-7, -1), (3, 7), (7, -7)],
 }
 MODES = {"fast": 0, "exact": 1, "brute": 2}
+FILTERS = ("off", "coverage")
+# quality.filter = coverage (glsl/fibers/coverage.glsl): candidates per ring visit of the coverage scan, and
+# the loop passes it may spend, 2 visits a ring plus each visit's final test
+COVER_CAP = 48
 
 # The proxy rectangle's corners as two triangles (glsl/stages/container.vert places them per segment).
 _QUAD = np.array([[0, 0], [1, 0], [1, 1], [0, 0], [1, 1], [0, 1]], dtype=np.float32)
@@ -180,11 +184,13 @@ class Renderer:
                 self._targets[key] = self.ctx.framebuffer([tex(size, 4, dtype="f4")])
             else:
                 images = [tex(size, 4, dtype="u4"), tex(size, 4, dtype="u4"), tex(size, 4, dtype="f4"),
-                          tex(size, 4, dtype="f4"), tex(size, 4, dtype="f4")]
+                          tex(size, 4, dtype="f4"), tex(size, 4, dtype="f4"), tex(size, 4, dtype="f4"),
+                          tex(size, 1, dtype="f4")]
                 self._targets[key] = self.ctx.framebuffer(images)
-                # what each pass clears: the walk state always; the cost counters for the cost output (the
-                # hit images are written wherever the state says there is a hit)
-                self._targets[(size, "state clear")] = self.ctx.framebuffer(images[:1])
+                # what each pass clears: the walk state and the filtered mode's colour always; the cost
+                # counters for the cost output (the hit images are written wherever the state says there
+                # is a hit)
+                self._targets[(size, "state clear")] = self.ctx.framebuffer([images[0], images[5]])
                 self._targets[(size, "cost clear")] = self.ctx.framebuffer(images[3:])
         return self._targets[key]
 
@@ -265,6 +271,8 @@ class Renderer:
             "uTipWidth": p["strand.tip_width"], "uTaperStart": p["strand.taper_start"],
             "uFrizz": sh.frizz, "uFrizzAmplitude": sh.frizz_amplitude, "uNoiseAmplitude": sh.noise_amplitude,
             "uNoiseFrequency": sh.noise_frequency,
+            # the filtered mode's tent footprint: half-width quality.filter_width pixels, per unit distance
+            "uFootprint": p["quality.filter_width"] * 2.0 * th / h,
         }
         for name, value in values.items():
             if name in prog:
@@ -297,9 +305,14 @@ class Renderer:
             ])
         return self._vaos[key]
 
-    def visibility(self, p: Params, cam: Camera, size: tuple[int, int]) -> str:
+    def visibility(self, p: Params, cam: Camera, size: tuple[int, int], mode: str | None = None) -> str:
         """Which way this frame finds each pixel's containers: quality.visibility, or for "auto" the walk
-        once the proxies would stack WALK_LAYERS deep (proxy_layers, cached per camera and size)."""
+        once the proxies would stack WALK_LAYERS deep (proxy_layers, cached per camera and size). The
+        filtered mode always walks: compositing a footprint over several containers needs each pixel's
+        containers front to back with state kept between them, which the walk has and the proxies (one
+        fragment per pixel kept by the depth test) have not."""
+        if filtered(p, mode or p["quality.mode"]):
+            return "walk"
         choice = p["quality.visibility"]
         if choice != "auto":
             return choice
@@ -334,6 +347,8 @@ class Renderer:
         prog = self.programs.get(ctx, "stages/coverage.vert", "stages/coverage.frag", {})
         level = min(self.bvh.depth, COVERAGE_LEVEL)
         prog["uCoverageFirst"].value = (1 << level) - 1
+        if "uGrowPx" in prog:
+            prog["uGrowPx"].value = p["quality.filter_width"] if filtered(p, p["quality.mode"]) else 0.0
         prog["uBvhLeaves"].value = self.bvh.leaves
         prog["uViewport"].value = tuple(size)
         prog["uSceneFromCamera"].value = tuple(self.scene.origin - cam.position)
@@ -361,6 +376,8 @@ class Renderer:
             for name in ("uBruteRange", "uFiberRange"):
                 if name in prog:
                     prog[name].value = (start, end)
+            if "uCoverOn" in prog:          # the coverage scan tests whole rings: once, in the first range
+                prog["uCoverOn"].value = int(start == 0)
             # every covered pixel walks each range: the mask is drawn anew (done pixels wrote WALK_DEPTH)
             self._target(size, "walk").depth_mask = True
             self._use(self._target(size, "walk"), region)
@@ -525,7 +542,7 @@ class Renderer:
         size = (int(size[0]), int(size[1]))
         region = (0, 0) + size if region is None else tuple(int(v) for v in region)
         self.prepare_state()
-        proxies = self.visibility(p, cam, size) == "proxies"
+        proxies = self.visibility(p, cam, size, mode) == "proxies"
         frame = Frame()
         offsets = [tuple(offset)]
         if antialias and mode != "brute":
@@ -685,8 +702,11 @@ def _shaped_arc_passes(p: Params, scene: Scene) -> np.ndarray:
 
 def _loop_budget(p: Params, rays: int, walks: int = 0) -> int:
     """Loop passes one traversal may spend in one draw: the budget less the shading's share, the walks
-    through the hierarchy (WALK_CAP box tests each, raycast.frag) and the ring, arc and canary loops."""
-    return (LOOP_CAP - LOOP_HEADROOM - walks * (WALK_CAP + 1)) // max(1, rays) - (16 * p["fibers.rings"] + 16)
+    through the hierarchy (WALK_CAP box tests each, raycast.frag), the filtered mode's coverage scan (at
+    most COVER_CAP candidates per ring visit) and the ring, arc and canary loops."""
+    cover = 2 * p["fibers.rings"] * (COVER_CAP + 2) + 1 if p["quality.filter"] != "off" else 0
+    return ((LOOP_CAP - LOOP_HEADROOM - walks * (WALK_CAP + 1) - cover) // max(1, rays)
+            - (16 * p["fibers.rings"] + 16))
 
 
 def needs_ring_order(p: Params, scene: Scene, mode: str, rays: int = 1, walks: int = 0) -> bool:
@@ -766,12 +786,24 @@ def draw_ranges(p: Params, scene: Scene, mode: str, rays: int = 1, walks: int = 
 
 def model_defines(p: Params, mode: str, cost: bool) -> dict[str, int]:
     """The defines of the fiber model and the traversal, the same for either visibility strategy."""
-    return {**fibers.glsl_defines(), "TRAVERSAL": MODES[mode],
+    return {**fibers.glsl_defines(), "TRAVERSAL": MODES[mode], "FILTER": int(filtered(p, mode)),
+            "COVER_CAP": COVER_CAP,
             "HASH_THESIS": int(p["fibers.hash"] == "thesis"), "COST_PASS": int(cost),
             "SHAPED": int(is_shaped(p)), "SHAPE_CURL": shape_curl_define(p), "SHAPE_FRIZZ": int(is_frizzed(p)),
             "SHAPE_ELLIPSOID": int(p["shape.ellipsoid"] > 0), "SHAPE_TWIST": int(p["shape.twist"] != 0),
             "SHADING_MODEL": SHADING_MODELS[p["look.model"]], "SHADOW_MODE": SHADOW_MODES[p["look.self_shadow"]],
             "TAPER": int(fibers.tapered(p))}       # glsl/fibers/taper.glsl: tip width 1 builds no cone
+
+
+def filtered(p: Params, mode: str) -> bool:
+    """Whether a frame gets the filtered colour (quality.filter, glsl/fibers/coverage.glsl): exact mode,
+    straight fibers. Fast mode takes the first container with a hit, which the filter's grown bounds would
+    reorder (its ids would change); brute force is the reference for ids; curved fibers have no coverage
+    scan yet (they keep the nearest fiber's colour)."""
+    if p["quality.filter"] not in FILTERS:
+        raise ParamError(f"quality.filter = {p['quality.filter']!r}: use one of {', '.join(FILTERS)}",
+                         key="quality.filter")
+    return p["quality.filter"] == "coverage" and mode == "exact" and not is_shaped(p)
 
 
 def shape_curl_define(p: Params) -> int:

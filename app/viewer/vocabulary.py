@@ -33,9 +33,9 @@ SECTIONS: tuple[tuple[str, tuple[str, ...]], ...] = (
                   "light.rim_azimuth", "light.rim_elevation", "light.rim_color", "light.environment",
                   "light.environment_file", "light.environment_intensity", "light.environment_rotation",
                   "look.ambient", "light.rig_rotation")),
-    ("Render", ("look.exposure", "look.background", "quality.mode", "quality.supersample", "quality.msaa",
-                "quality.render_scale", "camera.azimuth", "camera.elevation", "camera.distance",
-                "camera.target", "camera.fov", "camera.near", "camera.far")),
+    ("Render", ("look.exposure", "look.background", "quality.mode", "quality.filter", "quality.filter_width",
+                "quality.supersample", "quality.msaa", "quality.render_scale", "camera.azimuth", "camera.elevation",
+                "camera.distance", "camera.target", "camera.fov", "camera.near", "camera.far")),
 )
 OPEN_SECTIONS = ("Groom", "Strands and fibers", "Shading", "Lighting")
 
@@ -73,7 +73,8 @@ LABELS: dict[str, str] = {
     "light.rig_rotation": "rotate all lights",
     "look.exposure": "exposure", "look.background": "background",
     "quality.mode": "accuracy", "quality.supersample": "anti-aliasing", "quality.msaa": "edge samples (MSAA)",
-    "quality.render_scale": "resolution", "camera.azimuth": "camera orbit", "camera.elevation": "camera height",
+    "quality.render_scale": "resolution", "quality.filter": "thin-fiber filter",
+    "quality.filter_width": "filter width", "camera.azimuth": "camera orbit", "camera.elevation": "camera height",
     "camera.distance": "camera distance", "camera.target": "look at", "camera.fov": "field of view",
     "camera.near": "near clip", "camera.far": "far clip",
 }
@@ -106,6 +107,7 @@ CHOICE_LABELS: dict[str, dict[str, str]] = {
     "look.self_shadow": {"off": "off", "density": "estimated", "traced": "traced"},
     "look.color_source": {"look": "the look's colour", "file": "the file's, where it has them"},
     "quality.mode": {"fast": "fast", "exact": "exact", "brute": "reference (slow)"},
+    "quality.filter": {"off": "off (one ray)", "coverage": "coverage (holds still)"},
     "light.environment": {"off": "off", "studio": "studio (generated)", "sky": "sky (generated)",
                           "file": "image file"},
 }
@@ -154,6 +156,9 @@ APPLIES: dict[str, tuple[Callable[[Params], bool], str]] = {
     "light.environment_rotation": (lambda p: p["light.environment"] != "off", "the HDRI is off"),
     "quality.msaa": (lambda p: p["quality.mode"] != "brute", "reference accuracy casts one ray per pixel"),
     "quality.supersample": (lambda p: p["quality.mode"] != "brute", "reference accuracy casts one ray per pixel"),
+    "quality.filter": (lambda p: p["quality.mode"] == "exact", "the filter colours exact mode's frames"),
+    "quality.filter_width": (lambda p: p["quality.mode"] == "exact" and p["quality.filter"] == "coverage",
+                             "the filter is off"),
 }
 
 

@@ -35,6 +35,9 @@ uniform int uSegmentCount;
 uniform vec3 uSceneFromCamera;  // scene origin minus camera position: the tree and segments are scene-relative
 
 const uint WALK_DONE = 0xFFFFFFFFu;
+// The filtered mode's footprint half-width per unit distance (walk.frag sets it): every bound grows by the
+// footprint at its farthest point, so a container a pixel's footprint reaches is walked into.
+float gBoundGrow = 0.0;
 int gWalkSteps = 0;             // walk steps (two bound tests each), all walks of this invocation
 bool gWalkRanOut = false;
 
@@ -64,6 +67,12 @@ vec2 tube_interval(vec3 o, vec3 d, float r) {
 vec2 box_interval(int i, vec3 invD) {
     vec3 p = bvhNodes[2 * i].xyz + uSceneFromCamera;
     vec3 q = bvhNodes[2 * i + 1].xyz + uSceneFromCamera;
+#if defined(FILTER) && FILTER
+    bool full = p.x <= q.x;
+    vec3 g = vec3(gBoundGrow * length(max(abs(p), abs(q))));
+    p = full ? p - g : p;
+    q = full ? q + g : q;
+#endif
     vec3 ta = p * invD;
     vec3 tb = q * invD;
     vec3 tn = min(ta, tb);
@@ -80,7 +89,12 @@ vec2 cylinder_interval(int i, vec3 rd) {
     vec3 ez = b.xyz;
     float oz = dot(o, ez);
     float dz = dot(rd, ez);
-    vec2 c = tube_interval(o - oz * ez, rd - dz * ez, a.w);
+#if defined(FILTER) && FILTER
+    float r = a.w + gBoundGrow * (length(o) + b.w + a.w);
+#else
+    float r = a.w;
+#endif
+    vec2 c = tube_interval(o - oz * ez, rd - dz * ez, r);
     vec2 z = slab(oz, dz, 0.0, b.w);
     return a.w >= 0.0 ? vec2(max(c.x, z.x), min(c.y, z.y)) : vec2(INF, -INF);
 }

@@ -1,7 +1,11 @@
 // fiber_shading.glsl: the colour, normal and ids of a fiber hit, and the light that reaches it
 // (the fiber's albedo along its strand: fiber_color.glsl).
 //   Shaded shade_fiber_hit(Segment seg, UnitRay ur, FiberHit hit, vec3 rd, uint segIndex, bool shade)
-//   float  light_transmittance(Segment seg, UnitRay ur, FiberHit hit, vec3 L)
+//   Shaded shade_fiber_at(Segment seg, UnitRay ur, FiberHit hit, vec3 P, vec4 given, vec3 rd,
+//                         uint segIndex, bool shade)   at a given point, with given randoms (tint, rough)
+//                         and, where given.z >= 0, the key light's transmittance and the occlusion
+//                         (given.zw): the filtered mode's blended fiber (fibers/coverage.glsl)
+//   float  light_transmittance(Segment seg, UnitRay ur, FiberHit hit, vec3 Pu, vec3 L)   Pu: the hit, unit space
 // SHADING_MODEL 0 Kajiya-Kay, 1 Marschner; SHADOW_MODE 0 off, 1 density estimate, 2 traced shadow ray
 // (the same traversal, any hit, inside the hit's container).
 
@@ -36,12 +40,11 @@ struct Shaded {
 };
 
 // How much key light reaches the hit through the fibers between it and the container's surface.
-float light_transmittance(Segment seg, UnitRay ur, FiberHit hit, vec3 L) {
+float light_transmittance(Segment seg, UnitRay ur, FiberHit hit, vec3 Pu, vec3 L) {
 #if SHADOW_MODE == 0
     return 1.0;
 #else
-    // the light direction in unit space at the hit (the projective map bends directions by position)
-    vec3 Pu = ur.O + hit.s * ur.D;
+    // the light direction in unit space at the hit Pu (the projective map bends directions by position)
     float w = seg.r0 / (1.0 - seg.kappa * Pu.z);
     vec3 Pl = Pu * w;
     vec3 Ll = transpose(mat3(seg.ex, seg.ey, seg.ez)) * L;
@@ -84,14 +87,16 @@ float light_transmittance(Segment seg, UnitRay ur, FiberHit hit, vec3 L) {
 
 // No early returns: a ray that misses still runs every statement (llvmpipe executes both sides of a
 // branch anyway, and code after a return would pay a blend per assignment); o.hit says what counts.
-Shaded shade_fiber_hit(Segment seg, UnitRay ur, FiberHit hit, vec3 rd, uint segIndex, bool shade) {
+Shaded shade_fiber_at(Segment seg, UnitRay ur, FiberHit hit, vec3 P, vec4 given, vec3 rd,
+                      uint segIndex, bool shade) {
+    float tint = given.x;
+    float rough = given.y;
     Shaded o;
     o.hit = hit.s < INF;
     hit.s = o.hit ? hit.s : 0.0;                // keep the arithmetic below finite on a miss
     o.t = unit_to_world_t(seg, ur, hit.s);
     o.id = uvec4(seg.guide + 1u, uint(hit.ring), uint(hit.fiber), segIndex);
 
-    vec3 P = ur.O + hit.s * ur.D;               // unit space
     // the side of a fiber; its cut tip; a fiber cut by a cap or joint (its section faces us)
     vec2 radial = P.xy - hit.c;
     vec3 nLocal = hit.kind == 0 ? vec3(radial, -seg.kappa * dot(radial, P.xy))
@@ -121,19 +126,24 @@ Shaded shade_fiber_hit(Segment seg, UnitRay ur, FiberHit hit, vec3 rd, uint segI
     vec2 slope = seg.kappa * hit.c + wHit * hit.dcdv * (seg.v1 - seg.v0) / seg.h;
     vec3 T = normalize(worldFromLocal * (axis + vec3(slope, 0.0)));
 
-    uint key = fiber_key(uSeed, seg.guide, uint(hit.ring), uint(hit.fiber));
-    float tint = key_random(key, CH_TINT) - 0.5;
-    float rough = key_random(key, CH_ROUGH) - 0.5;
     vec3 color = fiber_color(seg.guide, unit_to_v(seg, P.z), tint);
     float roughness = clamp(uRoughness * (1.0 + uRoughnessVariation * 2.0 * rough), 0.02, 1.0);
     // fibers deep in the container see less of the sky
-    float occlusion = mix(1.0, exp(-3.0 * (1.0 - length(hit.c))), uShadowDensity);
+    float occlusion = given.z >= 0.0 ? given.w : mix(1.0, exp(-3.0 * (1.0 - length(hit.c))), uShadowDensity);
     ContainerShadow cs = ContainerShadow(transpose(worldFromLocal), hit.c,
                                          SHADOW_MODE == 0 ? 0.0 : uShadowDensity * uFiberDensity);
     vec3 radiance = shade_lights(T, N, V, color, roughness, occlusion,
-                                 light_transmittance(seg, ur, hit, uLightDir), cs);
+                                 given.z >= 0.0 ? given.z : light_transmittance(seg, ur, hit, P, uLightDir), cs);
     o.color = tone_map(radiance);
     return o;
+}
+
+// The nearest fiber's colour: its hit point, its own randoms.
+Shaded shade_fiber_hit(Segment seg, UnitRay ur, FiberHit hit, vec3 rd, uint segIndex, bool shade) {
+    float s = hit.s < INF ? hit.s : 0.0;        // keep the arithmetic finite on a miss
+    uint key = fiber_key(uSeed, seg.guide, uint(hit.ring), uint(hit.fiber));
+    vec4 given = vec4(key_random(key, CH_TINT) - 0.5, key_random(key, CH_ROUGH) - 0.5, -1.0, -1.0);
+    return shade_fiber_at(seg, ur, hit, ur.O + s * ur.D, given, rd, segIndex, shade);
 }
 
 

@@ -11,6 +11,7 @@
 uniform mat4 uClipFromCamera;   // projection * view rotation (camera at the origin)
 uniform vec2 uViewport;
 uniform int uCoverageFirst;     // index of the first node of the level drawn
+uniform float uGrowPx;          // the filtered mode's footprint half-width in pixels (0 without)
 
 void main() {
     int node = uCoverageFirst + gl_InstanceID;
@@ -38,8 +39,9 @@ void main() {
         pLo = min(pLo, ndc);
         pHi = max(pHi, ndc);
     }
-    // two pixels of margin: sub-pixel sample offsets reach half a pixel past the centre
-    vec2 margin = 4.0 / uViewport;
+    // two pixels of margin: sub-pixel sample offsets reach half a pixel past the centre (and the filtered
+    // mode's footprint its half-width)
+    vec2 margin = (4.0 + 2.0 * uGrowPx) / uViewport;
     vec2 ndc = behind ? corner * 2.0 - 1.0 : mix(pLo - margin, pHi + margin, corner);
     ndc = empty ? vec2(-2.0) : clamp(ndc, -1.0, 1.0);
     gl_Position = vec4(ndc, -1.0, 1.0);

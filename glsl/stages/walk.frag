@@ -12,7 +12,11 @@
 // (renderer.py: Renderer._walk_draws); mark_done.frag then writes depth where a pixel is done, and the
 // early depth test keeps it out of later draws (the rasterizer, not this shader, skips it).
 // Variants (defines): TRAVERSAL 0 fast (the first container with a hit wins), 1 exact, 2 brute;
-// COST_PASS also adds up the work of every draw in uCost and uWalk.
+// COST_PASS also adds up the work of every draw in uCost and uWalk. FILTER 1 (quality.filter = coverage,
+// exact only): each container also adds the share of the pixel's footprint its fibers cover, shaded as one
+// blended fiber (fibers/coverage.glsl), under what the nearer containers left (uAccum, front to back in
+// the walk's order: nearer bound first); bounds are grown by the footprint, and the walk goes on past the
+// nearest fiber until the footprint is opaque. The nearest fiber (uState, uHitKey) is found as without.
 
 layout(early_fragment_tests) in;
 
@@ -23,6 +27,13 @@ layout(early_fragment_tests) in;
 
 #ifndef COST_PASS
 #define COST_PASS 0
+#endif
+#ifndef FILTER
+#define FILTER 0
+#endif
+#if FILTER
+#include "fibers/coverage.glsl"
+#include "shading/fiber_shading.glsl"
 #endif
 
 uniform int uRestart;           // 1: a new fiber range begins, walk from the nearest container again
@@ -36,6 +47,10 @@ layout(binding = 2, rgba32f) uniform coherent image2D uHitShape;   // fiber cent
 #if COST_PASS
 layout(binding = 3, rgba32f) uniform coherent image2D uCost;       // fiber tests, arcs, containers entered, loop passes
 layout(binding = 4, rgba32f) uniform coherent image2D uWalk;       // candidates traversed, box tests, walks, walks run out
+#endif
+#if FILTER
+layout(binding = 5, rgba32f) uniform coherent image2D uAccum;     // linear colour (premultiplied), alpha
+layout(binding = 6, r32f) uniform coherent image2D uAccumFront;   // world t of the nearest colour so far
 #endif
 layout(std430, binding = 3) buffer Progress { uint unfinished; };
 
@@ -53,9 +68,17 @@ void main() {
     uint node = uRestart != 0 ? 0u : state.z;
     uint trail = uRestart != 0 ? 0u : state.w;
     vec3 rd = view_ray(uPixelOffset);
+#if FILTER
+    gBoundGrow = uFootprint;
+    vec4 accum = imageLoad(uAccum, px);
+    // until the footprint is opaque every container it meets adds colour, behind the nearest fiber too
+    float cut = accum.a >= 0.999 ? walk_cut(bestT) : INF;
+#else
+    float cut = walk_cut(bestT);
+#endif
 
     // on to the next container (a pixel that stopped at one last draw stands on it already)
-    walk_to_leaf(node, trail, rd, uNear, walk_cut(bestT));
+    walk_to_leaf(node, trail, rd, uNear, cut);
     bool visit = node != WALK_DONE && node_level(node) == uBvhDepth;
     // no branch around the traversal: under a lane mask llvmpipe pays a blend for every assignment in it,
     // so a pixel with nothing to visit traverses segment 0 along an empty interval instead
@@ -71,13 +94,48 @@ void main() {
     bool improved = best.s < INF && key_before(t, id, bestT, bestSeg);
     bestT = improved ? t : bestT;
     bestSeg = improved ? id : bestSeg;
+#if FILTER
+    UnitRay uf;
+    float wu;
+    bool near = to_unit_space_dilated(seg, rd, uNear, uf, wu) && visit;
+    uf.s0 = near ? uf.s0 : INF;
+    uf.s1 = near ? uf.s1 : -INF;
+    // the key light and the self-shadow estimate per fiber (traced shadows: the blend's own shadow ray)
+    vec3 Lu = transpose(mat3(seg.ex, seg.ey, seg.ez)) * uLightDir;
+    float sigma = SHADOW_MODE == 1 ? uShadowDensity * uFiberDensity : 0.0;
+    CoverBlend cb = cover_straight(seg, uf, wu, Lu, vec2(sigma, uShadowDensity));
+    gTests += cb.tests;
+#if !COST_PASS
+    FiberHit bh = no_hit();
+    bh.s = cb.s;
+    bh.ring = 0;
+    bh.fiber = 0;
+    bh.c = cb.c;
+    vec3 P = vec3(cb.c + cb.radial, uf.O.z + cb.s * uf.D.z);
+    vec4 given = vec4(cb.tint, cb.rough, SHADOW_MODE == 2 ? -1.0 : cb.light, cb.occlusion);
+    Shaded sh = shade_fiber_at(seg, uf, bh, P, given, rd, id, true);
+    // composited in linear light (the reference averages there). The walk is depth first, nearer child
+    // first: containers come roughly, not exactly, front to back, so each goes over what is there when it
+    // starts nearer than all of it, else under (exact for two layers in either order).
+    float front = accum.a > 0.0 ? imageLoad(uAccumFront, px).x : INF;
+    float tc = unit_to_world_t(seg, uf, cb.s);
+    vec4 mine = vec4(cb.alpha * pow(sh.color, vec3(2.2)), cb.alpha);
+    bool over = tc < front;
+    accum = cb.alpha > 0.0 ? (over ? mine + (1.0 - cb.alpha) * accum : accum + (1.0 - accum.a) * mine) : accum;
+    imageStore(uAccum, px, accum);
+    imageStore(uAccumFront, px, vec4(cb.alpha > 0.0 ? min(front, tc) : front));
+#endif
+    cut = accum.a >= 0.999 ? walk_cut(bestT) : INF;
+#else
+    cut = walk_cut(bestT);
+#endif
     // past this container, and on to the next one now, so a pixel with none left is done at once
     uint upNode = node;
     uint upTrail = trail;
     pop(upNode, upTrail);
     node = visit ? upNode : node;
     trail = visit ? upTrail : trail;
-    walk_to_leaf(node, trail, rd, uNear, walk_cut(bestT));
+    walk_to_leaf(node, trail, rd, uNear, cut);
     node = (gMode == 0 && bestT < INF) ? WALK_DONE : node;     // fast: the first container with a hit wins
     bool finished = node == WALK_DONE;
     imageStore(uState, px, uvec4(bestT < INF ? floatBitsToUint(bestT) : 0u, bestSeg, node, trail));
