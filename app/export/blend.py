@@ -2,14 +2,17 @@
 
 What the file holds (docs/osl.md, "A Blender scene"):
 
-* **One mesh object**, ``vfiber_containers``, at the scene origin (no rotation or scale): a closed box around
-  every container segment (8 vertices, 6 quads; the box spans the segment's bounding slab, joint planes
-  included, and circumscribes its round cross-section). Each face carries its segment as **face-domain
+* **A few mesh objects**, ``vfiber_containers`` and ``vfiber_containers.nbK``, at the scene origin (no
+  rotation or scale): a closed mitred octagonal prism around every container segment (container_boxes),
+  grouped by how many neighbour slots its faces carry (K, NEIGHBOUR_SLOTS). Each face carries its segment as **face-domain
   attributes**: ``vf_p0``, ``vf_p1`` (end points, object space), ``vf_n0``, ``vf_n1`` (joint planes),
   ``vf_fx`` (frame x), ``vf_rrg`` (r0, r1, guide), ``vf_v`` (v0, v1, 0): the GL's per-instance rows
   (app/scene/containers.py), so bent multi-segment guides, taper and joint planes come through unchanged.
   A groom file with colours adds ``vf_root_color`` and ``vf_tip_color``: the linear colour of the face's
   guide at its root and tip (``Scene.guide_colors``), which the shader uses when look.color_source = file.
+  And the rows of its **neighbours** (neighbour_lists: the segments whose containers reach into its prism),
+  ``vf_nb{k}_p0`` .. ``vf_nb{k}_v`` for k < K, with which the shader lets a camera ray stop only at the
+  container holding the nearest fiber (docs/osl.md, "Overlapping containers").
 * **The look's material**: a Script node in *Internal* mode whose text (``vfiber.osl``) is the shader of
   :mod:`app.export.osl`, embedded in the file, compiled by this exporter (the bytecode is saved with the
   node). Cycles exports a mesh attribute only when a non-script node asks for it, so one Attribute node
@@ -18,7 +21,7 @@ What the file holds (docs/osl.md, "A Blender scene"):
   resolution; a Sun lamp per light of ``look.light_rig`` (key, fill, rim); a world that shows
   ``look.background`` to camera rays and lights the fibers with the preview's ambient fill plus the
   environment image (packed into the file, turned by a Mapping node).
-* **Render settings the shader needs**: Cycles on the CPU with OSL, transparent bounces for every box a
+* **Render settings the shader needs**: Cycles on the CPU with OSL, transparent bounces for every prism a
   ray can cross, transparent film, Standard view transform, output to ``//render_####.png`` (relative).
 
 No absolute path of the writing machine and no add-on: ``blender -b scene.blend -f 1`` renders it.
@@ -29,8 +32,10 @@ API
 ``export_blend(params, path, size=(640, 360), name="scene", progress=print) -> BlendStats``
     Build the scene from ``params`` (a preset's or a groom's) and write the .blend atomically. Imports bpy
     (the ``[blender]`` extra) into this process and resets its scene.
-``container_boxes(segments) -> (vertices, faces, face_rows)``
-    The proxy mesh as numpy arrays (no bpy): 8 vertices and 6 quads per segment.
+``container_boxes(segments) -> (vertices, faces, face_sizes, face_rows)``
+    The proxy mesh as numpy arrays (no bpy): 16 vertices and 10 faces per segment.
+``neighbour_lists(segments, cap) -> (lists, counts)``
+    Per segment the other segments whose containers reach into its prism, deepest overlap first.
 ``main(argv) -> int``
     ``vfiber export-blend TARGET -o scene.blend [--size WxH] [--set KEY=VALUE ...]``.
 ``export_blend_in_child(params, path, size) -> str``
@@ -54,7 +59,7 @@ import numpy as np
 
 from app.params import Params
 
-__all__ = ["BlendStats", "ATTRIBUTES", "container_boxes", "export_blend", "main", "make_parser"]
+__all__ = ["BlendStats", "ATTRIBUTES", "container_boxes", "export_blend", "main", "make_parser", "neighbour_lists"]
 
 #: face attributes of the proxy mesh: name -> columns of the segment row (app/scene/containers.py)
 ATTRIBUTES: dict[str, tuple[int, int, int] | tuple[int, int, None]] = {
@@ -150,10 +155,11 @@ def container_boxes(segments: np.ndarray, sides: int = PRISM_SIDES) -> tuple[np.
 #: "Overlapping containers"). Prisms are grouped into objects by how many slots they need
 #: (NEIGHBOUR_SLOTS), so the attribute memory follows the neighbour counts rather than the largest one.
 NEIGHBOUR_SLOTS = (0, 2, 4, 8, 12, 16, 24, 32, 48, 64)
-#: neighbour rows (segments x slots) a scene may carry at most: each costs ~4 KB of attributes in Blender and
-#: Cycles (7 vectors on 10 faces / 28 triangles); a denser scene keeps every prism's deepest-overlapping
-#: neighbours under a lower per-scene cap (neighbour_cap)
-NEIGHBOUR_ROW_BUDGET = 1_500_000
+#: neighbour rows (prisms x slots) a scene may carry at most: each costs ~5.4 KB of render memory (7 vectors
+#: on 10 faces in Blender, 28 triangles in Cycles; measured on Ratboy_mohawk), so this adds at most ~3.6 GiB.
+#: A denser scene keeps every prism's deepest-overlapping neighbours under a lower per-scene cap
+#: (neighbour_cap): harolongo (158,100 segments, 114 neighbours each on average) gets 4
+NEIGHBOUR_ROW_BUDGET = 700_000
 #: relative slack of every bounding volume of the traversal (glsl/common/epsilon.glsl EPS_BOUND)
 EPS_BOUND = 1e-4
 
@@ -309,20 +315,17 @@ def color_face_attributes(segments: np.ndarray, rows: np.ndarray, guide_colors: 
 # ------------------------------------------------------------------------------------------------------ bpy
 
 
-def neighbour_face_attributes(segments: np.ndarray, rows: np.ndarray, lists: np.ndarray,
-                              slots: int) -> dict[str, np.ndarray]:
-    """{neighbour_attribute(k, name): (faces, 3) float32} for k < ``slots``: the rows of each face's
-    neighbours (``lists``, neighbour_lists; zeros where a slot is empty, which the shader reads as the
-    list's end)."""
-    out = {}
+def neighbour_face_attributes(segments: np.ndarray, rows: np.ndarray, lists: np.ndarray, slots: int):
+    """(neighbour_attribute(k, name), (faces, 3) float32) for k < ``slots``, one at a time (harolongo's are
+    ~20 MB each): the rows of each face's neighbours (``lists``, neighbour_lists; zeros where a slot is
+    empty, which the shader reads as the list's end)."""
     for k in range(slots):
         j = lists[rows, k] if k < lists.shape[1] else np.full(len(rows), -1)
         filled = j >= 0
         for name, cols in ATTRIBUTES.items():
             values = np.zeros((len(rows), 3), np.float32)
             values[filled] = _face_attribute(segments, j[filled], cols)
-            out[neighbour_attribute(k, name)] = values
-    return out
+            yield neighbour_attribute(k, name), values
 
 
 def _build_mesh(bpy, segments: np.ndarray, guide_colors: np.ndarray | None, subset: np.ndarray,
@@ -339,13 +342,16 @@ def _build_mesh(bpy, segments: np.ndarray, guide_colors: np.ndarray | None, subs
     starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int32)
     mesh.polygons.foreach_set("loop_start", starts)
     mesh.update(calc_edges=True)
-    values = {name: _face_attribute(segments, rows, cols) for name, cols in ATTRIBUTES.items()}
-    if guide_colors is not None:
-        values.update(color_face_attributes(segments, rows, guide_colors))
-    values.update(neighbour_face_attributes(segments, rows, lists, slots))
-    for attr_name, v in values.items():
+    def attributes():
+        for attr_name, cols in ATTRIBUTES.items():
+            yield attr_name, _face_attribute(segments, rows, cols)
+        if guide_colors is not None:
+            yield from color_face_attributes(segments, rows, guide_colors).items()
+        yield from neighbour_face_attributes(segments, rows, lists, slots)
+
+    for attr_name, values in attributes():
         a = mesh.attributes.new(attr_name, "FLOAT_VECTOR", "FACE")
-        a.data.foreach_set("vector", v.ravel())
+        a.data.foreach_set("vector", values.ravel())
     mesh.update()
     return mesh, len(verts), len(sizes)
 
@@ -541,7 +547,7 @@ def export_blend(params: Params, path: str | Path, size: tuple[int, int] = (640,
     scene = bpy.context.scene
     scene.name = "vfiber"
     _render_settings(scene, params, size)   # the engine first: the script node asks it for its sockets
-    say(f"{scene_data.n_segments} container segments of {scene_data.n_guides} guides -> one mesh ...")
+    say(f"{scene_data.n_segments} container segments of {scene_data.n_guides} guides -> prisms ...")
     colors = scene_data.guide_colors
     segments = scene_data.segments
     lists, counts = neighbour_lists(segments)
@@ -667,6 +673,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                          "(bpy==5.0.1, Python 3.11)") from None
     stats = export_blend(params, out, size, name, progress=lambda msg: print(msg, file=sys.stderr))
     print(f"wrote {out} ({stats.bytes / 1e6:.1f} MB): {stats.segments} container segments of {stats.guides} "
-          f"guides on one mesh, {size[0]}x{size[1]}, {stats.seconds:.1f} s; render it with "
+          f"guides on {stats.objects} mesh object(s), {stats.neighbour_rows} neighbour rows (at most "
+          f"{stats.neighbour_cap} per prism), {size[0]}x{size[1]}, {stats.seconds:.1f} s; render it with "
           f"blender -b {out.name} -f 1")
     return 0

@@ -202,7 +202,7 @@ def test_neighbour_attributes_carry_the_neighbours_rows():
     seg = scene.segments
     lists, _ = XB.neighbour_lists(seg)
     _, _, _, rows = XB.container_boxes(seg)
-    attrs = XB.neighbour_face_attributes(seg, rows, lists, 4)
+    attrs = dict(XB.neighbour_face_attributes(seg, rows, lists, 4))
     assert len(attrs) == 4 * len(XB.ATTRIBUTES)
     for k in range(4):
         j = lists[rows, k]
