@@ -4,8 +4,8 @@ What the file holds (docs/osl.md, "A Blender scene"):
 
 * **A few mesh objects**, ``vfiber_containers`` and ``vfiber_containers.nbK``, at the scene origin (no
   rotation or scale): a closed mitred octagonal prism around every container segment (container_boxes),
-  grouped by how many neighbour slots its faces carry (K, NEIGHBOUR_SLOTS). Each face carries its segment as **face-domain
-  attributes**: ``vf_p0``, ``vf_p1`` (end points, object space), ``vf_n0``, ``vf_n1`` (joint planes),
+  grouped by how many neighbour slots its faces carry (K, NEIGHBOUR_SLOTS). Each face carries its segment
+  as **face-domain attributes**: ``vf_p0``, ``vf_p1`` (end points, object space), ``vf_n0``, ``vf_n1`` (joint planes),
   ``vf_fx`` (frame x), ``vf_rrg`` (r0, r1, guide), ``vf_v`` (v0, v1, 0): the GL's per-instance rows
   (app/scene/containers.py), so bent multi-segment guides, taper and joint planes come through unchanged.
   A groom file with colours adds ``vf_root_color`` and ``vf_tip_color``: the linear colour of the face's
