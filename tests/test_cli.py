@@ -286,7 +286,8 @@ def test_export_blend_takes_the_look_on_a_groom(tmp_path, monkeypatch, capsys):
 
     def fake_export(params, out, size, name, progress=None):
         got.update(params=params, name=name)
-        return SimpleNamespace(bytes=0, segments=0, guides=0, seconds=0.0)
+        return SimpleNamespace(bytes=0, segments=0, guides=0, seconds=0.0, objects=1, neighbour_rows=0,
+                               neighbour_cap=0)
 
     monkeypatch.setattr(blend, "export_blend", fake_export)
     monkeypatch.setattr(B, "_bpy", lambda: None)

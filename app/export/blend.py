@@ -2,14 +2,17 @@
 
 What the file holds (docs/osl.md, "A Blender scene"):
 
-* **One mesh object**, ``vfiber_containers``, at the scene origin (no rotation or scale): a closed box around
-  every container segment (8 vertices, 6 quads; the box spans the segment's bounding slab, joint planes
-  included, and circumscribes its round cross-section). Each face carries its segment as **face-domain
-  attributes**: ``vf_p0``, ``vf_p1`` (end points, object space), ``vf_n0``, ``vf_n1`` (joint planes),
+* **A few mesh objects**, ``vfiber_containers`` and ``vfiber_containers.nbK``, at the scene origin (no
+  rotation or scale): a closed mitred octagonal prism around every container segment (container_boxes),
+  grouped by how many neighbour slots its faces carry (K, NEIGHBOUR_SLOTS). Each face carries its segment
+  as **face-domain attributes**: ``vf_p0``, ``vf_p1`` (end points, object space), ``vf_n0``, ``vf_n1`` (joint planes),
   ``vf_fx`` (frame x), ``vf_rrg`` (r0, r1, guide), ``vf_v`` (v0, v1, 0): the GL's per-instance rows
   (app/scene/containers.py), so bent multi-segment guides, taper and joint planes come through unchanged.
   A groom file with colours adds ``vf_root_color`` and ``vf_tip_color``: the linear colour of the face's
   guide at its root and tip (``Scene.guide_colors``), which the shader uses when look.color_source = file.
+  And the rows of its **neighbours** (neighbour_lists: the segments whose containers reach into its prism),
+  ``vf_nb{k}_p0`` .. ``vf_nb{k}_v`` for k < K, with which the shader lets a camera ray stop only at the
+  container holding the nearest fiber (docs/osl.md, "Overlapping containers").
 * **The look's material**: a Script node in *Internal* mode whose text (``vfiber.osl``) is the shader of
   :mod:`app.export.osl`, embedded in the file, compiled by this exporter (the bytecode is saved with the
   node). Cycles exports a mesh attribute only when a non-script node asks for it, so one Attribute node
@@ -18,7 +21,7 @@ What the file holds (docs/osl.md, "A Blender scene"):
   resolution; a Sun lamp per light of ``look.light_rig`` (key, fill, rim); a world that shows
   ``look.background`` to camera rays and lights the fibers with the preview's ambient fill plus the
   environment image (packed into the file, turned by a Mapping node).
-* **Render settings the shader needs**: Cycles on the CPU with OSL, transparent bounces for every box a
+* **Render settings the shader needs**: Cycles on the CPU with OSL, transparent bounces for every prism a
   ray can cross, transparent film, Standard view transform, output to ``//render_####.png`` (relative).
 
 No absolute path of the writing machine and no add-on: ``blender -b scene.blend -f 1`` renders it.
@@ -29,8 +32,10 @@ API
 ``export_blend(params, path, size=(640, 360), name="scene", progress=print) -> BlendStats``
     Build the scene from ``params`` (a preset's or a groom's) and write the .blend atomically. Imports bpy
     (the ``[blender]`` extra) into this process and resets its scene.
-``container_boxes(segments) -> (vertices, faces, face_rows)``
-    The proxy mesh as numpy arrays (no bpy): 8 vertices and 6 quads per segment.
+``container_boxes(segments) -> (vertices, faces, face_sizes, face_rows)``
+    The proxy mesh as numpy arrays (no bpy): 16 vertices and 10 faces per segment.
+``neighbour_lists(segments, cap) -> (lists, counts)``
+    Per segment the other segments whose containers reach into its prism, deepest overlap first.
 ``main(argv) -> int``
     ``vfiber export-blend TARGET -o scene.blend [--size WxH] [--set KEY=VALUE ...]``.
 ``export_blend_in_child(params, path, size) -> str``
@@ -54,7 +59,7 @@ import numpy as np
 
 from app.params import Params
 
-__all__ = ["BlendStats", "ATTRIBUTES", "container_boxes", "export_blend", "main", "make_parser"]
+__all__ = ["BlendStats", "ATTRIBUTES", "container_boxes", "export_blend", "main", "make_parser", "neighbour_lists"]
 
 #: face attributes of the proxy mesh: name -> columns of the segment row (app/scene/containers.py)
 ATTRIBUTES: dict[str, tuple[int, int, int] | tuple[int, int, None]] = {
@@ -86,6 +91,9 @@ class BlendStats:
     seconds: float
     bytes: int
     size: tuple[int, int]
+    neighbour_cap: int = 0      # neighbour slots a prism may carry in this scene (neighbour_cap)
+    neighbour_rows: int = 0     # neighbour slots written, over all prisms
+    objects: int = 1            # mesh objects: one per slot count
 
 
 def _joint_slope(n_local_z: np.ndarray) -> np.ndarray:
@@ -140,6 +148,155 @@ def container_boxes(segments: np.ndarray, sides: int = PRISM_SIDES) -> tuple[np.
     return verts, faces, sizes, rows
 
 
+#: every face also carries its segment's *neighbours*: the rows of the other segments whose containers
+#: reach into its prism, in slots vf_nb{k}_p0 .. vf_nb{k}_v (the seven ATTRIBUTES each, k = 0, 1, ...).
+#: At a prism's entry face the shader shows its own nearest fiber only when no neighbour has a fiber
+#: nearer on the ray; otherwise the ray passes on to the nearer fiber's own prism (docs/osl.md,
+#: "Overlapping containers"). Prisms are grouped into objects by how many slots they need
+#: (NEIGHBOUR_SLOTS), so the attribute memory follows the neighbour counts rather than the largest one.
+NEIGHBOUR_SLOTS = (0, 2, 4, 8, 12, 16, 24, 32, 48, 64)
+#: neighbour rows (prisms x slots) a scene may carry at most: each costs ~5.4 KB of render memory (7 vectors
+#: on 10 faces in Blender, 28 triangles in Cycles; measured on Ratboy_mohawk), so this adds at most ~3.6 GiB.
+#: A denser scene keeps every prism's deepest-overlapping neighbours under a lower per-scene cap
+#: (neighbour_cap): harolongo (158,100 segments, 114 neighbours each on average) gets 4
+NEIGHBOUR_ROW_BUDGET = 700_000
+#: relative slack of every bounding volume of the traversal (glsl/common/epsilon.glsl EPS_BOUND)
+EPS_BOUND = 1e-4
+
+
+def neighbour_attribute(k: int, name: str) -> str:
+    """The face attribute of neighbour slot ``k`` holding what ``name`` (an ATTRIBUTES key) holds for the
+    face's own segment: vf_p0 -> vf_nb3_p0."""
+    return f"vf_nb{k}_{name.removeprefix('vf_')}"
+
+
+def overlap_capsules(segments: np.ndarray, sides: int = PRISM_SIDES):
+    """Capsules (axis ends a, b and radius) around each segment's prism and around its container: the prism
+    (circumscribed octagon, mitred or slab ends, container_boxes) lies within radius ``half`` of its axis
+    extended by half * tan(joint tilt) + pad at each end; the container within its bounding cylinder
+    (r_bound (1 + EPS_BOUND)) between the planes of its bounding slab (r_bound tan(tilt) past each end)."""
+    s = np.asarray(segments, np.float64)
+    p0, p1 = s[:, 0:3], s[:, 4:7]
+    ez = (p1 - p0) / np.linalg.norm(p1 - p0, axis=1)[:, None]
+    r = np.maximum(s[:, 3], s[:, 7])
+    slope0 = _joint_slope((s[:, 8:11] * ez).sum(1))
+    slope1 = _joint_slope((s[:, 12:15] * ez).sum(1))
+    half = r * (1.0 + BOX_MARGIN) / math.cos(math.pi / sides)
+    pad = BOX_MARGIN * r
+    prism = (p0 - ez * (half * slope0 + pad)[:, None], p1 + ez * (half * slope1 + pad)[:, None], half)
+    rc = r * (1.0 + EPS_BOUND)
+    container = (p0 - ez * (rc * slope0)[:, None], p1 + ez * (rc * slope1)[:, None], rc)
+    return prism, container
+
+
+def segment_distance(a1: np.ndarray, b1: np.ndarray, a2: np.ndarray, b2: np.ndarray) -> np.ndarray:
+    """Distance between the line segments a1-b1 and a2-b2, row by row (closest points clamped to both)."""
+    d1, d2, w = b1 - a1, b2 - a2, a1 - a2
+    a, e = (d1 * d1).sum(1), (d2 * d2).sum(1)
+    b, c, f = (d1 * d2).sum(1), (d1 * w).sum(1), (d2 * w).sum(1)
+    den = a * e - b * b
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(den > 1e-12 * a * e, np.clip((b * f - c * e) / den, 0.0, 1.0), 0.0)
+        t = (b * s + f) / e
+        s = np.where(t < 0.0, np.clip(-c / a, 0.0, 1.0), np.where(t > 1.0, np.clip((b - c) / a, 0.0, 1.0), s))
+    t = np.clip(t, 0.0, 1.0)
+    q = a1 + d1 * s[:, None] - a2 - d2 * t[:, None]
+    return np.sqrt((q * q).sum(1))
+
+
+def _axis_cells(a: np.ndarray, b: np.ndarray, spacing: float, base: np.ndarray, cell: float,
+                strides: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(segment, cell key) of points sampled along each axis a-b at most ``spacing`` apart, ends included;
+    one row per distinct (segment, cell); key = cell index . strides."""
+    length = np.linalg.norm(b - a, axis=1)
+    count = np.ceil(length / spacing).astype(np.int64) + 1
+    seg = np.repeat(np.arange(len(a)), count)
+    k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    f = k / np.maximum(count[seg] - 1, 1)
+    pts = a[seg] + (b - a)[seg] * f[:, None]
+    keys = np.floor((pts - base) / cell).astype(np.int64) @ strides
+    return _distinct(seg, keys)
+
+
+def _distinct(seg: np.ndarray, keys: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct (seg, key) pairs (keys >= 0), sorted by segment."""
+    span = int(keys.max()) + 1
+    both = np.unique(seg * span + keys)
+    return both // span, both % span
+
+
+def neighbour_lists(segments: np.ndarray, cap: int = NEIGHBOUR_SLOTS[-1]) -> tuple[np.ndarray, np.ndarray]:
+    """(lists (n, cap) int64, -1 padded; counts (n,)): for each segment Z the segments Y whose container
+    capsule overlaps Z's prism capsule (overlap_capsules; a conservative test of the container reaching into
+    the prism), deepest overlap (radii sum minus axis distance) first, at most ``cap``; ``counts`` before the
+    cap. The next and previous segment of the same guide are left out: their containers end on the joint
+    plane that the prism overshoots by only BOX_MARGIN r (they meet the prism in that sliver alone).
+
+    Candidates come from a grid: both axes are sampled at most ``spacing`` apart, so two capsules that
+    overlap (axes within reach, the largest radii sum) have samples within reach + spacing, one cell, of each
+    other: in the same or adjacent cells; the prism's cells are widened by one cell each way and joined
+    with the containers' cells."""
+    s = np.asarray(segments, np.float64)
+    n = len(s)
+    (ap, bp, rp), (ac, bc, rc) = overlap_capsules(s)
+    empty = np.full((n, cap), -1, np.int64)
+    if n < 2:
+        return empty, np.zeros(n, np.int64)
+    reach = float(rp.max() + rc.max())
+    spacing = 0.25 * reach      # finer samples, smaller cells: fewer candidate pairs per true one
+    cell = reach + spacing
+    # a margin of one cell each way, so a neighbouring cell's key never wraps to another row of the grid
+    ends = np.concatenate([ap, bp, ac, bc])
+    base = ends.min(0) - cell
+    dims = np.floor((ends.max(0) - base) / cell).astype(np.int64) + 2
+    strides = np.array([dims[1] * dims[2], dims[2], 1], np.int64)
+    zs, zk = _axis_cells(ap, bp, spacing, base, cell, strides)
+    ys, yk = _axis_cells(ac, bc, spacing, base, cell, strides)
+    order = np.argsort(yk, kind="stable")
+    y_keys, y_segs = yk[order], ys[order]
+    guide = s[:, 19]
+    found_i, found_j, found_depth = [], [], []
+    offsets = np.stack(np.meshgrid([-1, 0, 1], [-1, 0, 1], [-1, 0, 1], indexing="ij"), -1).reshape(-1, 3) @ strides
+    chunk = 4096
+    bounds = np.searchsorted(zs, np.arange(0, n + chunk, chunk))     # zs is sorted by segment
+    for c0, c1 in zip(bounds[:-1], bounds[1:]):
+        fat_seg, fk = _distinct(np.repeat(zs[c0:c1], len(offsets)), (zk[c0:c1, None] + offsets[None]).ravel())
+        lo, hi = np.searchsorted(y_keys, fk, "left"), np.searchsorted(y_keys, fk, "right")
+        m = hi - lo
+        i = np.repeat(fat_seg, m)
+        j = y_segs[np.repeat(lo, m) + np.arange(m.sum()) - np.repeat(np.cumsum(m) - m, m)]
+        pair = np.unique(i * n + j)
+        i, j = pair // n, pair % n
+        keep = (i != j) & ~((guide[i] == guide[j]) & (np.abs(i - j) == 1))
+        i, j = i[keep], j[keep]
+        depth = rp[i] + rc[j] - segment_distance(ap[i], bp[i], ac[j], bc[j])
+        hit = depth >= 0.0
+        found_i.append(i[hit]), found_j.append(j[hit]), found_depth.append(depth[hit])
+    i, j, depth = np.concatenate(found_i), np.concatenate(found_j), np.concatenate(found_depth)
+    order = np.lexsort((-depth, i))
+    i, j = i[order], j[order]
+    counts = np.bincount(i, minlength=n)
+    rank = np.arange(len(i)) - np.repeat(np.cumsum(counts) - counts, counts)
+    take = rank < cap
+    empty[i[take], rank[take]] = j[take]
+    return empty, counts
+
+
+def neighbour_cap(counts: np.ndarray, budget: int = NEIGHBOUR_ROW_BUDGET) -> int:
+    """The largest slot count of NEIGHBOUR_SLOTS whose bucketed neighbour rows fit in ``budget``."""
+    best = 0
+    for cap in NEIGHBOUR_SLOTS:
+        if slot_bucket(np.minimum(counts, cap)).sum() <= budget:
+            best = cap
+    return best
+
+
+def slot_bucket(counts: np.ndarray) -> np.ndarray:
+    """The slot count (one of NEIGHBOUR_SLOTS) of the object a prism with ``counts`` neighbours goes to."""
+    slots = np.asarray(NEIGHBOUR_SLOTS)
+    return slots[np.searchsorted(slots, np.minimum(counts, slots[-1]), "left")]
+
+
 def _face_attribute(segments: np.ndarray, rows: np.ndarray, cols) -> np.ndarray:
     out = np.zeros((len(rows), 3), np.float32)
     for j, c in enumerate(cols):
@@ -158,9 +315,25 @@ def color_face_attributes(segments: np.ndarray, rows: np.ndarray, guide_colors: 
 # ------------------------------------------------------------------------------------------------------ bpy
 
 
-def _build_mesh(bpy, segments: np.ndarray, guide_colors: np.ndarray | None = None):
-    verts, faces, sizes, rows = container_boxes(segments)
-    mesh = bpy.data.meshes.new(OBJECT_NAME)
+def neighbour_face_attributes(segments: np.ndarray, rows: np.ndarray, lists: np.ndarray, slots: int):
+    """(neighbour_attribute(k, name), (faces, 3) float32) for k < ``slots``, one at a time (harolongo's are
+    ~20 MB each): the rows of each face's neighbours (``lists``, neighbour_lists; zeros where a slot is
+    empty, which the shader reads as the list's end)."""
+    for k in range(slots):
+        j = lists[rows, k] if k < lists.shape[1] else np.full(len(rows), -1)
+        filled = j >= 0
+        for name, cols in ATTRIBUTES.items():
+            values = np.zeros((len(rows), 3), np.float32)
+            values[filled] = _face_attribute(segments, j[filled], cols)
+            yield neighbour_attribute(k, name), values
+
+
+def _build_mesh(bpy, segments: np.ndarray, guide_colors: np.ndarray | None, subset: np.ndarray,
+                lists: np.ndarray, slots: int, name: str):
+    """The prisms of the segments ``subset`` as one mesh, with their own rows and ``slots`` neighbour slots."""
+    verts, faces, sizes, local_rows = container_boxes(segments[subset])
+    rows = subset[local_rows]
+    mesh = bpy.data.meshes.new(name)
     mesh.vertices.add(len(verts))
     mesh.vertices.foreach_set("co", verts.ravel())
     mesh.loops.add(faces.size)
@@ -169,13 +342,16 @@ def _build_mesh(bpy, segments: np.ndarray, guide_colors: np.ndarray | None = Non
     starts = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int32)
     mesh.polygons.foreach_set("loop_start", starts)
     mesh.update(calc_edges=True)
-    for name, cols in ATTRIBUTES.items():
-        a = mesh.attributes.new(name, "FLOAT_VECTOR", "FACE")
-        a.data.foreach_set("vector", _face_attribute(segments, rows, cols).ravel())
-    if guide_colors is not None:
-        for name, values in color_face_attributes(segments, rows, guide_colors).items():
-            a = mesh.attributes.new(name, "FLOAT_VECTOR", "FACE")
-            a.data.foreach_set("vector", values.ravel())
+    def attributes():
+        for attr_name, cols in ATTRIBUTES.items():
+            yield attr_name, _face_attribute(segments, rows, cols)
+        if guide_colors is not None:
+            yield from color_face_attributes(segments, rows, guide_colors).items()
+        yield from neighbour_face_attributes(segments, rows, lists, slots)
+
+    for attr_name, values in attributes():
+        a = mesh.attributes.new(attr_name, "FLOAT_VECTOR", "FACE")
+        a.data.foreach_set("vector", values.ravel())
     mesh.update()
     return mesh, len(verts), len(sizes)
 
@@ -371,16 +547,30 @@ def export_blend(params: Params, path: str | Path, size: tuple[int, int] = (640,
     scene = bpy.context.scene
     scene.name = "vfiber"
     _render_settings(scene, params, size)   # the engine first: the script node asks it for its sockets
-    say(f"{scene_data.n_segments} container segments of {scene_data.n_guides} guides -> one mesh ...")
+    say(f"{scene_data.n_segments} container segments of {scene_data.n_guides} guides -> prisms ...")
     colors = scene_data.guide_colors
-    mesh, n_verts, n_faces = _build_mesh(bpy, scene_data.segments, colors)
+    segments = scene_data.segments
+    lists, counts = neighbour_lists(segments)
+    cap = neighbour_cap(counts)
+    slots = slot_bucket(np.minimum(counts, cap))
+    say(f"neighbours per prism: mean {counts.mean():.1f}, max {counts.max()}; {cap} slots at most "
+        f"({int(np.maximum(counts - cap, 0).sum())} of {int(counts.sum())} left out) ...")
+    used = sorted({int(k) for k in slots})
     say("compiling the shader ...")
-    mat, _script = _material(bpy, scene, osl_source(params, name), name,
-                             tuple(ATTRIBUTES) + (COLOR_ATTRIBUTES if colors is not None else ()))
-    mesh.materials.append(mat)
-    ob = bpy.data.objects.new(OBJECT_NAME, mesh)
-    ob.location = tuple(float(v) for v in scene_data.origin)
-    scene.collection.objects.link(ob)
+    attributes = tuple(ATTRIBUTES) + (COLOR_ATTRIBUTES if colors is not None else ()) + tuple(
+        neighbour_attribute(k, a) for k in range(max(used)) for a in ATTRIBUTES)
+    mat, _script = _material(bpy, scene, osl_source(params, name), name, attributes)
+    n_verts = n_faces = 0
+    for k in used:
+        subset = np.flatnonzero(slots == k)
+        # one object per slot count: the attribute memory follows each prism's own neighbour count
+        ob_name = OBJECT_NAME if k == used[0] else f"{OBJECT_NAME}.nb{k}"
+        mesh, nv, nf = _build_mesh(bpy, segments, colors, subset, lists, k, ob_name)
+        n_verts, n_faces = n_verts + nv, n_faces + nf
+        mesh.materials.append(mat)
+        ob = bpy.data.objects.new(ob_name, mesh)
+        ob.location = tuple(float(v) for v in scene_data.origin)
+        scene.collection.objects.link(ob)
     cam_ob = B._camera_object(bpy, dict(position=cam.position.tolist(), target=cam.target.tolist(),
                                         up=cam.up.tolist(), fov_deg=cam.fov, near=cam.near, far=cam.far))
     cam_ob.name = "vfiber camera"
@@ -406,7 +596,7 @@ def export_blend(params: Params, path: str | Path, size: tuple[int, int] = (640,
                 tmp_blend.unlink()
     seconds = time.perf_counter() - t0
     return BlendStats(path, scene_data.n_segments, scene_data.n_guides, n_verts, n_faces, seconds,
-                      path.stat().st_size, tuple(size))
+                      path.stat().st_size, tuple(size), cap, int(slots.sum()), len(used))
 
 
 def export_blend_in_child(params: Params, path: str | Path, size: tuple[int, int] = (640, 360)) -> str:
@@ -483,6 +673,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                          "(bpy==5.0.1, Python 3.11)") from None
     stats = export_blend(params, out, size, name, progress=lambda msg: print(msg, file=sys.stderr))
     print(f"wrote {out} ({stats.bytes / 1e6:.1f} MB): {stats.segments} container segments of {stats.guides} "
-          f"guides on one mesh, {size[0]}x{size[1]}, {stats.seconds:.1f} s; render it with "
+          f"guides on {stats.objects} mesh object(s), {stats.neighbour_rows} neighbour rows (at most "
+          f"{stats.neighbour_cap} per prism), {size[0]}x{size[1]}, {stats.seconds:.1f} s; render it with "
           f"blender -b {out.name} -f 1")
     return 0

@@ -239,8 +239,8 @@ def cmd_table2_row(a) -> int:
         from app.scene.generators import build_scene
 
         sd = build_scene(q)
-        ob = bpy.data.objects["vfiber_containers"]
-        bpy.data.objects.remove(ob)
+        for ob in [o for o in bpy.data.objects if o.name.startswith("vfiber_containers")]:
+            bpy.data.objects.remove(ob)     # every slot-count group of prisms (blend.NEIGHBOUR_SLOTS)
         rf = q["fibers.fiber_radius"] * float(np.median(sd.segments[:, 3]))
         curves, fibers = _explicit_curves(bpy, sd, n, rf)
         mat = bpy.data.materials.new("explicit hair")
