@@ -46,8 +46,10 @@ API
 from __future__ import annotations
 
 import argparse
+import hashlib
 import math
 import os
+import re
 import sys
 import tempfile
 import time
@@ -356,6 +358,26 @@ def _build_mesh(bpy, segments: np.ndarray, guide_colors: np.ndarray | None, subs
     return mesh, len(verts), len(sizes)
 
 
+def portable_bytecode(oso: str) -> str:
+    """The compiled shader without the paths of the machine that compiled it. oslc writes its command line
+    (a temporary output file, Blender's include folder) in a comment, and the source file's path in every
+    ``%filename`` hint and source-line comment, which only error messages and debuggers read. A farm must not
+    see where the file was made: each path becomes its file name (Blender's temporary copy of the text
+    becomes the text's own name)."""
+    def name(path: str) -> str:
+        base = path.replace("\\", "/").rsplit("/", 1)[-1]
+        return TEXT_NAME if re.fullmatch(r"tmp\w*\.osl", base) else base
+
+    out = []
+    for line in oso.split("\n"):
+        if line.startswith("# options:"):
+            line = "# options: (left out by vfiber: paths of the exporting machine)"
+        elif line.startswith("#"):
+            line = re.sub(r"(?:[A-Za-z]:)?[\w./\\-]*[/\\][\w.-]+", lambda m: name(m.group(0)), line)
+        out.append(line)
+    return re.sub(r'%filename\{"([^"]*)"\}', lambda m: '%filename{"' + name(m.group(1)) + '"}', "\n".join(out))
+
+
 def _material(bpy, scene, source: str, name: str, attributes=tuple(ATTRIBUTES)):
     from . import blender as B
 
@@ -379,6 +401,8 @@ def _material(bpy, scene, source: str, name: str, attributes=tuple(ATTRIBUTES)):
         ok = cycles_osl.update_script_node(script, lambda kind, msg: reports.append(f"{kind}: {msg}"))
     if not ok or not script.outputs:
         raise B.BlenderRenderError(f"Blender could not compile the vfiber shader: {' '.join(reports)[-2000:]}")
+    script.bytecode = portable_bytecode(script.bytecode)
+    script.bytecode_hash = hashlib.md5(script.bytecode.encode(), usedforsecurity=False).hexdigest()
     nt.links.new(script.outputs["BSDF"], out.inputs["Surface"])
     # Cycles exports a mesh attribute only when a non-script node asks for it: one Attribute node per name,
     # summed into one AOV value (a sink that keeps them alive without touching the image)

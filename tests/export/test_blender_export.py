@@ -401,7 +401,7 @@ LIGHT_SETS = ("light.fill_intensity=0.6", "light.fill_azimuth=-100", "light.rim_
 
 #: opens a .blend with nothing but bpy (as a farm would) and prints its lamps and world as one JSON line
 _INSPECT = r"""
-import json, os, sys, bpy
+import json, os, re, sys, bpy
 bpy.ops.wm.open_mainfile(filepath=os.path.abspath(sys.argv[1]))
 lamps = []
 for ob in bpy.data.objects:
@@ -414,7 +414,11 @@ env = nodes.get("vfiber environment")
 images = [{"name": im.name, "packed": im.packed_file is not None, "filepath": im.filepath_raw,
            "packed_paths": [pf.filepath for pf in im.packed_files],
            "size": list(im.size)} for im in bpy.data.images if im.type == "IMAGE"]
+bytecodes = [n.bytecode for m in bpy.data.materials if m.node_tree for n in m.node_tree.nodes
+             if n.bl_idname == "ShaderNodeScript"]
 out = {"lamps": lamps, "images": images, "external_paths": sorted(bpy.utils.blend_paths(absolute=False)),
+       "bytecode_paths": sorted({p for b in bytecodes for p in re.findall(r"(?:^|[\s\"'=-])(/[\w.-]+/[\w./-]+)", b)}),
+       "bytecodes": len(bytecodes),
        "env_image": env.image.name if env and env.image else None,
        "rotation": list(nodes["vfiber environment rotation"].inputs["Rotation"].default_value) if env else None,
        "mapping": nodes["vfiber environment rotation"].vector_type if env else None,
@@ -470,6 +474,8 @@ def test_exported_lights_match_the_light_rig(tmp_path):
         np.testing.assert_allclose(lamp["rgb"], XB.SUN_PER_INTENSITY * np.asarray(light["color"]), rtol=1e-5,
                                    err_msg=light["kind"])
     assert info["external_paths"] == []
+    # nor in the saved shader: oslc's comments and hints named the temporary files and Blender's folder
+    assert info["bytecodes"] == 1 and info["bytecode_paths"] == [], info["bytecode_paths"]
     assert info["env_image"] == "vfiber-studio.hdr"
     image = next(im for im in info["images"] if im["name"] == info["env_image"])
     assert image["packed"] and image["filepath"] == "//vfiber-studio.hdr"     # Blender's relative name, no folder
@@ -509,3 +515,21 @@ def test_rim_light_changes_the_cycles_picture(tmp_path):
           f"pixels lit")
     assert off.max() == 0.0
     assert on.mean() > 0.005 and lit > 0.1
+
+
+def test_portable_bytecode_keeps_the_code_and_drops_the_machine_paths():
+    from app.export.blend import TEXT_NAME, portable_bytecode
+
+    oso = ("OpenShadingLanguage 1.00\n# Compiled by oslc 1.14.7.0\n"
+           "# options: -o /tmp/tmpyetq5dfv.oso -I/home/ann/.venv/bpy/scripts/addons_core/cycles/shader\n"
+           "shader vfiber_carpet\n# /tmp/tmp46piw7yw.osl:1860\n"
+           '\tadd\t$tmp1 a b\t%filename{"/tmp/tmp46piw7yw.osl"} %line{1860} %argrw{"wrr"}\n'
+           '\tmul\t$tmp2 c d\t%filename{".venv/lib/bpy/shader/stdosl.h"} %line{12} %argrw{"wrr"}\n')
+    got = portable_bytecode(oso)
+    assert "/tmp" not in got and "/home" not in got and ".venv" not in got
+    assert f'%filename{{"{TEXT_NAME}"}} %line{{1860}}' in got and '%filename{"stdosl.h"} %line{12}' in got
+    assert f"# {TEXT_NAME}:1860" in got and "# Compiled by oslc 1.14.7.0" in got
+    # every instruction line is the same but for its file hint
+    code = [ln for ln in oso.split("\n") if not ln.startswith("#")]
+    kept = [ln for ln in got.split("\n") if not ln.startswith("#")]
+    assert [ln.split("%filename")[0] for ln in kept] == [ln.split("%filename")[0] for ln in code]
