@@ -60,6 +60,7 @@ class Progressive:
         self._cost_job: tuple[tuple, StripJob] | None = None    # the overlay's cost render, in strips
         self._weights = None                        # display.row_weights of the frame being drawn
         self._frame_fibers_s = 0.0
+        self._sample_started = False                # this UI frame began a sample (its set-up is not UI)
 
     def _update_counts(self) -> None:
         s, scene = self.state, self.scene
@@ -161,6 +162,7 @@ class Progressive:
             return False
         quality, scale, mode = self._quality()
         size = key[2]
+        self._sample_started = True
         cam = make_camera(s.params, self.scene, size[0] / max(size[1], 1))
         # MSAA happens inside one renderer pass (with the shader's supersampling if both are set); plain
         # supersampling accumulates one stratified sample per frame

@@ -156,6 +156,7 @@ class WindowLoop:
         t0 = time.perf_counter()
         refining = self.vp.job is not None or self._cost_job is not None
         self._frame_fibers_s = 0.0          # strips drawn in this frame (the rest is UI and display)
+        self._sample_started = False
         dt, self._last_frame = t0 - self._last_frame, t0
         self._poll_shaders()
         if runner is not None:
@@ -199,7 +200,11 @@ class WindowLoop:
             if self._latency_from is not None:
                 self.state.stats.edit_latency_ms = (done - self._latency_from) * 1000
                 self._latency_from = None
-        if self._frame_fibers_s > 0:
+        # the UI's own part of a frame, which the strips' budget matches (progressive._budget): every frame
+        # but those that began a sample, whose set-up (a sketch, row weights, a first compile: up to seconds
+        # once) is not a cost of each frame. Counting only frames with strips made harolongo's median
+        # 0.7-1.5 s from its first few frames, so its "30 ms" strips took 120-300 ms a UI frame.
+        if not self._sample_started:
             self._ui_times.append(done - t0 - self._frame_fibers_s)
         if self._bench is not None and (self._bench["quality"] != "refining" or refining):
             self._bench["frames"].append(done - t0)
