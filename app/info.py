@@ -36,7 +36,7 @@ def info_lines(p: Params, scene: Scene, label: str) -> list[str]:
         f"fibers           {exact} exact; {thesis:.1f} by the thesis's expression 4.1",
         f"scene GPU bytes  {scene_gpu_bytes(scene)} (the same whatever the fiber count)",
         f"per-pixel bytes  {frame_gpu_bytes((1280, 720))} at 1280x720, {frame_gpu_bytes((640, 360))} at 640x360 "
-        "(colour, ids, geometry, walk state: sized by the image alone)",
+        "(colour, ids, geometry, depth, walk state: sized by the image alone)",
     ]
     if hasattr(scene, "source_info"):
         from .scene.grooms.defaults import auto_report

@@ -183,9 +183,7 @@ class Renderer:
             elif kind == "proxy cost":
                 self._targets[key] = self.ctx.framebuffer([tex(size, 4, dtype="f4")])
             else:
-                images = [tex(size, 4, dtype="u4"), tex(size, 4, dtype="u4"), tex(size, 4, dtype="f4"),
-                          tex(size, 4, dtype="f4"), tex(size, 4, dtype="f4"), tex(size, 4, dtype="f4"),
-                          tex(size, 1, dtype="f4")]
+                images = [tex(size, c, dtype=d) for c, d in STATE_IMAGES]
                 self._targets[key] = self.ctx.framebuffer(images)
                 # what each pass clears: the walk state and the filtered mode's colour always; the cost
                 # counters for the cost output (the hit images are written wherever the state says there
@@ -904,10 +902,18 @@ def proxy_layers(scene: Scene, cam: Camera, size: tuple[int, int], grid: int = 6
     return float(counts[covered].mean()) if covered.any() else 0.0
 
 
+# The walk's per-pixel images (Renderer._target "state"), (components, dtype): state, hit key, hit shape, the
+# two cost images, the filtered mode's colour and its transmittance (always there: one program set).
+STATE_IMAGES = ((4, "u4"), (4, "u4"), (4, "f4"), (4, "f4"), (4, "f4"), (4, "f4"), (1, "f4"))
+_DTYPE_BYTES = {"f1": 1, "u4": 4, "f4": 4}
+
+
 def frame_gpu_bytes(size: tuple[int, int]) -> int:
-    """Per-pixel targets of one frame: colour (4 B), ids (16 B), geometry (16 B), walk state (16 B); the
-    cost output adds 32 B per pixel while it is rendered."""
-    return int(size[0]) * int(size[1]) * (4 + 16 + 16 + 16)
+    """What the per-pixel targets of one frame allocate: the image (colour RGBA8 4 B, ids 16 B, geometry
+    16 B), the shared depth buffer (4 B) and the walk's state images (STATE_IMAGES: 100 B); a proxies-path
+    cost output adds 16 B per pixel while it is rendered."""
+    state = sum(c * _DTYPE_BYTES[d] for c, d in STATE_IMAGES)
+    return int(size[0]) * int(size[1]) * (4 + 16 + 16 + 4 + state)
 
 
 def supersample_offsets(n: int) -> list[tuple[float, float]]:

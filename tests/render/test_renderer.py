@@ -109,3 +109,29 @@ def test_goldens(gl, renderer, regen_goldens, name):
     p, scene, cam = setup(renderer, values, camera)
     img = renderer.render(p, cam, (240, 144)).color
     check_golden(gl, img, GOLDENS / f"{name}.png", TOLERANCE[name], regen_goldens, name)
+
+
+def test_frame_gpu_bytes_counts_what_a_frame_allocates(renderer):
+    """vfiber info and the viewer report frame_gpu_bytes beside the scene bytes (issue 12): it must be what
+    the renderer's per-pixel targets really take, walk state and the filtered mode's images included."""
+    from app.params import Params
+    from app.render.camera import Camera
+    from app.render.renderer import frame_gpu_bytes
+    from app.scene.generators import build_scene
+
+    p = Params().replace(**{"quality.visibility": "walk", "quality.filter": "coverage"})
+    scene = build_scene(p)
+    renderer.set_scene(scene)
+    size = (64, 36)
+    cam = Camera.from_params(p, scene, aspect=size[0] / size[1])
+    renderer.render(p, cam, size, outputs=("color", "ids", "cost"))
+    attachments = {}
+    for (s, kind), target in renderer._targets.items():
+        if s != size or kind == "proxy cost" or not hasattr(target, "color_attachments"):
+            continue
+        for a in [*target.color_attachments, target.depth_attachment]:
+            if a is not None:
+                attachments[(type(a).__name__, a.glo)] = a      # textures and renderbuffers number apart
+    per_byte = {"f1": 1, "u1": 1, "u4": 4, "i4": 4, "f4": 4, "f2": 2}
+    total = sum(a.width * a.height * a.components * per_byte[a.dtype] for a in attachments.values())
+    assert total == frame_gpu_bytes(size), (total, frame_gpu_bytes(size))
