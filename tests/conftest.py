@@ -1,4 +1,5 @@
-"""One headless GL context for the whole session, a renderer on it, and the golden-image options."""
+"""One headless GL context for the whole session, a renderer on it, the Blender harness for the Cycles
+tests, and the golden-image options."""
 
 from __future__ import annotations
 
@@ -36,3 +37,14 @@ def renderer(ctx):
 @pytest.fixture()
 def regen_goldens(request) -> bool:
     return request.config.getoption("--regen-goldens")
+
+
+@pytest.fixture(scope="session")
+def cycles():
+    """app.export.blender (bpy in a child process), or the test is skipped with the reason."""
+    from app.export import blender as B
+
+    ok, why = B.blender_available()
+    if not ok:
+        pytest.skip(f"Blender harness unavailable: {why}")
+    return B

@@ -208,15 +208,6 @@ def test_failed_write_keeps_the_old_file(tmp_path, monkeypatch):
 # Cycles
 
 
-@pytest.fixture(scope="module")
-def cycles():
-    from app.export import blender as B
-
-    ok, why = B.blender_available()
-    if not ok:
-        pytest.skip(f"Blender harness unavailable: {why}")
-    return B
-
 
 # A probe scene: one big cylinder filling a W x H view, so each pixel is one value computed by the shader
 # from its raster position (emission: radiance = the value, exact with one sample and no filter spread).

@@ -283,15 +283,6 @@ def test_groom_controls_change_the_groom_image(renderer, values):
 from tests.export.test_osl_export import _probe, blender_test, gl_vs_cycles, same_fiber  # noqa: E402
 
 
-@pytest.fixture(scope="module")
-def cycles():
-    from app.export import blender as B
-
-    ok, why = B.blender_available()
-    if not ok:
-        pytest.skip(f"Blender harness unavailable: {why}")
-    return B
-
 OSL_PROFILES = [dict(PROFILE), {"fibers.edge_density": 0.02, "fibers.edge_width": 1.0, "fibers.rings": 64,
                                 "fibers.phi_step": 0.7, "fibers.fiber_radius": 0.005, "fibers.edge_thickness": 0.05},
                 {"fibers.edge_density": 0.37, "fibers.edge_width": 0.05, "fibers.rings": 3, "fibers.phi_step": 9.0,

@@ -166,24 +166,15 @@ def test_frizz_moves_fibers_off_the_baselines_rest_lines_by_at_most_its_bound():
     assert d.max() <= sh.displacement * (1 + 1e-9) and d.max() > 0.5 * sh.displacement
 
 
-@pytest.fixture(scope="module")
-def blender():
-    from app.export import blender as B
-
-    ok, why = B.blender_available()
-    if not ok:
-        pytest.skip(f"Blender harness unavailable: {why}")
-    return B
-
 
 @blender_test
-def test_frizz_fiber_ids_match_in_cycles(blender, renderer, tmp_path):
+def test_frizz_fiber_ids_match_in_cycles(cycles, renderer, tmp_path):
     """The OSL twin: the exported shader sees the same frizzed fiber as the preview in each pixel."""
     p = Params({"scene.generator": "single", "scene.radius": 0.3, "scene.length": 1.0, "fibers.rings": 5,
                 "fibers.phi_step": 9.0, "fibers.fiber_radius": 0.05, "shape.curl_amplitude": 0.3,
                 "shape.curl_frequency": 3.0, "shape.twist": 0.5, "shape.frizz": 0.8, "shape.noise": 0.6,
                 "camera.elevation": 25.0})
-    r = gl_vs_cycles(blender, renderer, p, tmp_path, "frizz_ids", debug_view=1)
+    r = gl_vs_cycles(cycles, renderer, p, tmp_path, "frizz_ids", debug_view=1)
     both = r["gl"] & r["cycles"]
     same = same_fiber(r)
     print(f"frizz: fiber ids agree on {same[both].mean():.4%} of {both.sum()} pixels both cover")
