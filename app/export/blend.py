@@ -60,6 +60,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from app.params import Params
+from app.scene.containers import joint_slope
 
 __all__ = ["BlendStats", "ATTRIBUTES", "container_boxes", "export_blend", "main", "make_parser", "neighbour_lists"]
 
@@ -98,11 +99,6 @@ class BlendStats:
     objects: int = 1            # mesh objects: one per slot count
 
 
-def _joint_slope(n_local_z: np.ndarray) -> np.ndarray:
-    c = np.abs(n_local_z)
-    return np.sqrt(np.maximum(0.0, 1.0 - c * c)) / np.maximum(c, 1e-6)
-
-
 def container_boxes(segments: np.ndarray, sides: int = PRISM_SIDES) -> tuple[np.ndarray, list, np.ndarray]:
     """(vertices (2 sides N, 3) float32, faces (flat vertex indices), face_sizes, face_rows: the segment of
     each face) of the proxy mesh: per segment a prism of ``sides`` sides circumscribing its round container.
@@ -125,8 +121,8 @@ def container_boxes(segments: np.ndarray, sides: int = PRISM_SIDES) -> tuple[np.
     half = r * (1.0 + BOX_MARGIN) / math.cos(math.pi / sides)     # the prism's corners, circumscribing
     n0 = np.stack([(s[:, 8:11] * e).sum(1) for e in (ex, ey, ez)], 1)
     n1 = np.stack([(s[:, 12:15] * e).sum(1) for e in (ex, ey, ez)], 1)
-    z_lo_slab = -r * _joint_slope(n0[:, 2]) - pad
-    z_hi_slab = h + r * _joint_slope(n1[:, 2]) + pad
+    z_lo_slab = -r * joint_slope(n0[:, 2]) - pad
+    z_hi_slab = h + r * joint_slope(n1[:, 2]) + pad
     ang = 2.0 * math.pi * np.arange(sides) / sides
     cx, cy = np.cos(ang), np.sin(ang)
     z_lo = -(n0[:, 0:1] * cx + n0[:, 1:2] * cy) * half[:, None] / np.maximum(n0[:, 2:3], 1e-6) - pad[:, None]
@@ -181,8 +177,8 @@ def overlap_capsules(segments: np.ndarray, sides: int = PRISM_SIDES):
     p0, p1 = s[:, 0:3], s[:, 4:7]
     ez = (p1 - p0) / np.linalg.norm(p1 - p0, axis=1)[:, None]
     r = np.maximum(s[:, 3], s[:, 7])
-    slope0 = _joint_slope((s[:, 8:11] * ez).sum(1))
-    slope1 = _joint_slope((s[:, 12:15] * ez).sum(1))
+    slope0 = joint_slope((s[:, 8:11] * ez).sum(1))
+    slope1 = joint_slope((s[:, 12:15] * ez).sum(1))
     half = r * (1.0 + BOX_MARGIN) / math.cos(math.pi / sides)
     pad = BOX_MARGIN * r
     prism = (p0 - ez * (half * slope0 + pad)[:, None], p1 + ez * (half * slope1 + pad)[:, None], half)

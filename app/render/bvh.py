@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..scene.containers import Scene
+from ..scene.containers import Scene, joint_slope
 
 EPS_BOUND = 1e-4           # glsl/common/epsilon.glsl: the relative slack of every bounding volume
 
@@ -63,12 +63,9 @@ def segment_cylinders(segments: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.
     h = np.linalg.norm(axis, axis=1)
     ez = axis / np.maximum(h, 1e-300)[:, None]
 
-    def slope(n: np.ndarray) -> np.ndarray:         # container.glsl: joint_slope
-        c = np.abs((n * ez).sum(1))
-        return np.sqrt(np.maximum(0.0, 1.0 - c * c)) / np.maximum(c, 1e-6)
-
     r_bound = np.maximum(seg[:, 3], seg[:, 7])
-    z_lo, z_hi = -r_bound * slope(seg[:, 8:11]), h + r_bound * slope(seg[:, 12:15])
+    z_lo = -r_bound * joint_slope((seg[:, 8:11] * ez).sum(1))
+    z_hi = h + r_bound * joint_slope((seg[:, 12:15] * ez).sum(1))
     scale = np.abs(p0).max(1) + h + r_bound
     pad = 8.0 * EPS_BOUND * r_bound + 1e-6 * scale + 1e-30
     return p0 + ez * (z_lo - pad)[:, None], ez, (z_hi - z_lo) + 2.0 * pad, r_bound * (1.0 + 8.0 * EPS_BOUND) + pad

@@ -31,7 +31,7 @@ from .. import fibers
 from . import look
 from ..gl.shaders import ProgramCache
 from ..params import ParamError, Params
-from ..scene.containers import Scene
+from ..scene.containers import Scene, joint_slope
 from .bvh import ContainerBvh, build_bvh, bvh_nbytes
 from .camera import Camera
 
@@ -666,12 +666,9 @@ def _shaped_arc_passes(p: Params, scene: Scene) -> np.ndarray:
     h = np.linalg.norm(axis, axis=1)
     ez = axis / h[:, None]
 
-    def slope(n):                                   # container.glsl: joint_slope
-        c = np.abs((n * ez).sum(1))
-        return np.sqrt(np.maximum(0.0, 1.0 - c * c)) / np.maximum(c, 1e-6)
-
     r_bound = np.maximum(seg[:, 3], seg[:, 7])
-    z_lo, z_hi = -r_bound * slope(seg[:, 8:11]), h + r_bound * slope(seg[:, 12:15])
+    z_lo = -r_bound * joint_slope((seg[:, 8:11] * ez).sum(1))
+    z_hi = h + r_bound * joint_slope((seg[:, 12:15] * ez).sum(1))
     v_lo = seg[:, 11] + (seg[:, 15] - seg[:, 11]) * z_lo / h   # the guide parameter over the slab
     v_hi = seg[:, 11] + (seg[:, 15] - seg[:, 11]) * z_hi / h
     e_lo = float(np.min(np.minimum(fibers.shape_scale(sh, v_lo), fibers.shape_scale(sh, v_hi))))

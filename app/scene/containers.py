@@ -144,6 +144,14 @@ def _packed(polylines) -> tuple[np.ndarray, np.ndarray]:
 GUIDE_COLOR_FLOATS = 8  # per guide: root rgb, 0, tip rgb, 0 (two std430 vec4: glsl/shading/fiber_color.glsl)
 
 
+def joint_slope(cos_tilt: np.ndarray) -> np.ndarray:
+    """How far a joint plane leans past its end point per unit of radius (tan of its tilt), from the cosine
+    between the plane's normal and the segment axis: the numpy face of container.glsl's joint_slope, for
+    the bounds the renderer, the hierarchy and the Blender export put around each container."""
+    c = np.abs(cos_tilt)
+    return np.sqrt(np.maximum(0.0, 1.0 - c * c)) / np.maximum(c, 1e-6)
+
+
 @dataclass
 class Scene:
     segments: np.ndarray                         # (N, SEGMENT_FLOATS) float32
