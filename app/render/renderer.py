@@ -62,7 +62,6 @@ MSAA_PATTERNS = {
     8: [(1, -3), (-1, 3), (5, 1), (-3, -5), (-5, 5), (-7, -1), (3, 7), (7, -7)],
 }
 MODES = {"fast": 0, "exact": 1, "brute": 2}
-FILTERS = ("off", "coverage")
 # quality.filter = coverage (glsl/fibers/coverage.glsl): candidates per ring visit of the coverage scan, and
 # the loop passes it may spend, 2 visits a ring plus each visit's final test
 COVER_CAP = 48
@@ -795,9 +794,6 @@ def filtered(p: Params, mode: str) -> bool:
     straight fibers. Fast mode takes the first container with a hit, which the filter's grown bounds would
     reorder (its ids would change); brute force is the reference for ids; curved fibers have no coverage
     scan yet (they keep the nearest fiber's colour)."""
-    if p["quality.filter"] not in FILTERS:
-        raise ParamError(f"quality.filter = {p['quality.filter']!r}: use one of {', '.join(FILTERS)}",
-                         key="quality.filter")
     return p["quality.filter"] == "coverage" and mode == "exact" and not is_shaped(p)
 
 
