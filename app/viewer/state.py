@@ -570,7 +570,8 @@ def _with_groom_defaults(old: Params, new: Params, accepted: dict[str, Any]) -> 
     or the groom changes under it, the fiber sliders take the groom's values, except those this edit sets."""
     if not (new["fibers.groom_auto"] and new["scene.generator"] == "groom"):
         return new
-    same = ("scene.generator", "scene.groom_file", "scene.groom_radius_scale", "fibers.groom_auto")
+    same = ("scene.generator", "scene.groom_file", "scene.groom_radius_scale", "scene.groom_children",
+            "fibers.groom_auto")
     if all(old[k] == new[k] for k in same):
         return new
     from ..scene.grooms import GroomError
