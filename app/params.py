@@ -163,7 +163,7 @@ SPEC: tuple[Param, ...] = (
       "in its slot (thesis 3.5)", 0.0, 1.0),
     P("fibers.length_jitter", float, 0.2, "fibers end up to this fraction short of the tip (thesis 3.7)",
       0.0, 1.0),
-    P("fibers.groom_auto", bool, False, "grooms: choose interpolated children (where containers would fold in "
+    P("fibers.groom_auto", bool, True, "grooms: choose interpolated children (where containers would fold in "
       "tight curls), rings, spacing, fiber thickness and a soft clump edge from the groom (its strand spacing "
       "and curl, the default camera's pixel size); values you set yourself win"),
     P("fibers.hash", str, "integer", "per-fiber random numbers: integer hash of (guide, ring, fiber) or the "
