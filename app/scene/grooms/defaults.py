@@ -57,8 +57,8 @@ FOLD_TRIGGER = 0.10
 containers back: Curly_100 62%, Bangs_100 3% (a few kinked strands, which children made worse: IoU 0.929
 -> 0.903-0.922 with one child each), the other shared grooms under 1%."""
 MAX_FOLD = 0.025
-"""... and then as many as leave at most this share folding (Curly_100: 15 children, 2.1%; 12 leave 4.3%,
-20 leave 0.9%): see docs/grooms.md, "Curly: interpolated children"."""
+"""... and then as many as leave at most this share folding (Curly_100: 15 children, 2.3%; 12 leave 4.3%,
+20 leave 1.1%): see docs/grooms.md, "Curly: interpolated children"."""
 FOLD_SAMPLE = 2000             # strands the fold is judged on (auto_children)
 EDGE_DENSITY, EDGE_WIDTH = 0.3, 0.5
 EDGE_MIN_RINGS = 4             # fewer rings are too coarse for a profile: thinning ring 0 of 2 thins 3/4 of the area
