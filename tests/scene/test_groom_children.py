@@ -258,3 +258,20 @@ def load_polylines(scene) -> np.ndarray:
     per = scene.source.segments
     p0 = rows[:, 0:3].reshape(-1, per, 3)
     return np.concatenate([p0, rows[per - 1::per, 4:7][:, None]], axis=1) + scene.origin
+
+
+@needs_data
+def test_the_blend_export_carries_the_children():
+    """export-blend builds its prisms and colour attributes from the scene's rows, children included."""
+    from app.export.blend import color_face_attributes, container_boxes
+    from app.scene.grooms import scene_from_groom
+
+    p = Params({"scene.generator": "groom", "scene.groom_file": str(DATA / "Curly_100.ply"),
+                "scene.groom_children": 2})
+    scene = scene_from_groom(p)
+    plain = scene_from_groom(p.replace(**{"scene.groom_children": 0}))
+    _, _, sizes, rows = container_boxes(scene.segments)
+    _, _, plain_sizes, _ = container_boxes(plain.segments)
+    assert len(sizes) == 3 * len(plain_sizes) and set(np.unique(rows)) == set(range(scene.n_segments))
+    colours = color_face_attributes(scene.segments, rows, scene.guide_colors)
+    assert all(len(v) == len(rows) and np.isfinite(v).all() for v in colours.values())
