@@ -134,6 +134,9 @@ SPEC: tuple[Param, ...] = (
     P("scene.groom_scale", float, 1.0, "scale applied to the groom file's coordinates", 1e-6, 1e6),
     P("scene.groom_radius_scale", float, 1.0, "clump size of a groom: its container radius (from the spacing "
       "of the roots, or what a cluster's strands need) times this", 0.05, 20.0),
+    P("scene.groom_children", int, 0, "interpolated child guides per guide: thinner containers between the "
+      "strands, each blended from its nearest strands (Blender's Interpolated children), for curls tighter "
+      "than a container is wide; 0 = none", 0, 31),
     P("scene.groom_cluster", int, 0, "cluster strands into this many thick containers (0 = one per strand)",
       0, 100_000),
 
@@ -160,8 +163,9 @@ SPEC: tuple[Param, ...] = (
       "in its slot (thesis 3.5)", 0.0, 1.0),
     P("fibers.length_jitter", float, 0.2, "fibers end up to this fraction short of the tip (thesis 3.7)",
       0.0, 1.0),
-    P("fibers.groom_auto", bool, False, "grooms: choose rings, spacing, fiber thickness and a soft clump edge "
-      "from the groom (its strand spacing, the default camera's pixel size); values you set yourself win"),
+    P("fibers.groom_auto", bool, True, "grooms: choose interpolated children (where containers would fold in "
+      "tight curls), rings, spacing, fiber thickness and a soft clump edge from the groom (its strand spacing "
+      "and curl, the default camera's pixel size); values you set yourself win"),
     P("fibers.hash", str, "integer", "per-fiber random numbers: integer hash of (guide, ring, fiber) or the "
       "thesis's fract(1207.523 * phi)", choices=("integer", "thesis")),
     P("fibers.seed", int, 0, "seed of the per-fiber random numbers", 0, 2**31 - 1),

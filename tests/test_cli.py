@@ -99,7 +99,8 @@ def test_viewer_and_info_show_one_explicit_figure_on_sintel(capsys):
     state = AppState(params=p)
     Viewer._update_counts(SimpleNamespace(state=state, scene=scene))   # the viewer's own count, no window
     assert state.stats.explicit_bytes == info_bytes == estimate_bytes(scene, p)
-    assert info_bytes == 59_207_040   # 1,368 segments x 3,600 fibers x 12 B + 1,368 rows x 80 B (56.5 MiB)
+    # 1,368 segments x 148 fibers (fibers.groom_auto's fill for sintel) x 12 B + 1,368 rows x 80 B (2.4 MiB)
+    assert info_bytes == 2_539_008
 
     # tapered fibers also store where they end (2 B more per instance): both faces still agree
     tapered_sets = ["strand.tip_width=0.2"]
@@ -110,7 +111,7 @@ def test_viewer_and_info_show_one_explicit_figure_on_sintel(capsys):
     state = AppState(params=p)
     Viewer._update_counts(SimpleNamespace(state=state, scene=scene))
     assert state.stats.explicit_bytes == tapered_bytes == estimate_bytes(scene, p)
-    assert tapered_bytes == 59_207_040 + 1_368 * 3_600 * 2
+    assert tapered_bytes == 2_539_008 + 1_368 * 148 * 2
 
 
 def test_set_is_parsed_once_for_every_face(tmp_path):

@@ -48,6 +48,7 @@ class GroomSource:
     max_turn: float                    # sharpest joint of any guide, degrees
     radius_reason: str
     radii: np.ndarray                  # root radius per guide
+    children: int = 0                  # interpolated children per guide (scene.groom_children)
     seconds: dict[str, float] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
 
@@ -91,6 +92,10 @@ def source_info(scene: Scene, p: Params, gpu_lines: Sequence[str] = ()) -> list[
     else:
         why = "" if not s.cluster_requested else f", not fewer than the {s.guides:,} strands"
         lines.append(f"{'guides from':<{_W}}one per strand (scene.groom_cluster = {s.cluster_requested}{why})")
+    if s.children:
+        lines.append(f"{'children':<{_W}}{s.children} interpolated per guide (scene.groom_children): "
+                     f"{s.guides:,} guides in all, each child the blend of its nearest strands' shapes, rooted "
+                     f"between them")
     lines.append(f"{'segments':<{_W}}{s.segments} per guide, {scene.n_segments:,} containers; {s.segments_reason}")
     r = s.radii
     spread = f"{r[0]:.4g}" if np.all(r == r[0]) else f"median {np.median(r):.4g} (min {r.min():.4g}, max {r.max():.4g})"

@@ -26,7 +26,7 @@ from typing import Any
 
 from ..params import BY_KEY, SPEC, ParamError, Params, max_fiber_radius, suggest
 from ..presets import (LOOK_GROUPS, Preset, PresetError, apply_look, find_preset, is_groom, load_preset,
-                       save_preset)
+                       look_values, save_preset)
 # the explicit baseline's own allocation, so the viewer and `vfiber info` show one figure
 from ..render.explicit import EXPLICIT_FORMULA, explicit_bytes  # noqa: F401 - the viewer's names for them
 from ..scene.grooms import GROOM_SUFFIXES
@@ -447,6 +447,9 @@ class AppState:
             self.show_error(f"no groom file {str(path)!r}", "scene.groom_file")
             return False
         new = apply_look(Params({"scene.generator": "groom", "scene.groom_file": absolute}), self.params)
+        # fibers.groom_auto as `vfiber view GROOM --preset LOOK` applies it: the look's keys are given, so only
+        # the groom's scene keys (its interpolated children) take the groom's values
+        new = _with_groom_defaults(self.params, new, look_values(self.params))
         for key in [k for k in (*self.pending, *self.errors) if k.split(".", 1)[0] not in LOOK_GROUPS]:
             self.pending.pop(key, None)   # a half-typed scene value belonged to the scene that goes
             self.errors.pop(key, None)
@@ -570,7 +573,8 @@ def _with_groom_defaults(old: Params, new: Params, accepted: dict[str, Any]) -> 
     or the groom changes under it, the fiber sliders take the groom's values, except those this edit sets."""
     if not (new["fibers.groom_auto"] and new["scene.generator"] == "groom"):
         return new
-    same = ("scene.generator", "scene.groom_file", "scene.groom_radius_scale", "fibers.groom_auto")
+    same = ("scene.generator", "scene.groom_file", "scene.groom_radius_scale", "scene.groom_children",
+            "fibers.groom_auto")
     if all(old[k] == new[k] for k in same):
         return new
     from ..scene.grooms import GroomError

@@ -15,8 +15,8 @@ from ..params import SPEC, Params
 # to SPEC later and not placed here lands in the section of its group's first key, or "Other".
 SECTIONS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("Groom", ("scene.generator", "scene.groom_file", "scene.groom_up", "scene.groom_scale",
-               "scene.groom_cluster", "scene.groom_radius_scale", "scene.count", "scene.radius", "scene.length",
-               "scene.taper", "scene.segments", "scene.bend", "scene.seed")),
+               "scene.groom_cluster", "scene.groom_radius_scale", "scene.groom_children", "scene.count",
+               "scene.radius", "scene.length", "scene.taper", "scene.segments", "scene.bend", "scene.seed")),
     ("Strands and fibers", ("fibers.rings", "fibers.phi_step", "fibers.phi_increment", "fibers.even_spacing",
                             "fibers.groom_auto", "fibers.fiber_radius", "fibers.edge_density", "fibers.edge_width",
                             "fibers.edge_thickness", "fibers.radial_jitter", "fibers.angular_jitter",
@@ -42,7 +42,8 @@ OPEN_SECTIONS = ("Groom", "Strands and fibers", "Shading", "Lighting")
 LABELS: dict[str, str] = {
     "scene.generator": "hair from", "scene.groom_file": "groom file", "scene.groom_up": "up axis",
     "scene.groom_scale": "groom scale", "scene.groom_cluster": "clumps",
-    "scene.groom_radius_scale": "clump size", "scene.count": "guide hairs",
+    "scene.groom_radius_scale": "clump size", "scene.groom_children": "interpolated children",
+    "scene.count": "guide hairs",
     "scene.radius": "clump radius", "scene.length": "hair length", "scene.taper": "clump taper",
     "scene.segments": "segments per guide", "scene.bend": "bend", "scene.seed": "placement seed",
     "fibers.rings": "strand layers", "fibers.phi_step": "strand spacing", "fibers.phi_increment":
@@ -130,6 +131,7 @@ APPLIES: dict[str, tuple[Callable[[Params], bool], str]] = {
     "scene.groom_scale": (lambda p: p["scene.generator"] == "groom", "not a groom"),
     "scene.groom_cluster": (lambda p: p["scene.generator"] == "groom", "not a groom"),
     "scene.groom_radius_scale": (lambda p: p["scene.generator"] == "groom", "not a groom"),
+    "scene.groom_children": (lambda p: p["scene.generator"] == "groom", "not a groom"),
     "fibers.edge_width": (lambda p: p["fibers.edge_density"] < 1 or p["fibers.edge_thickness"] < 1,
                           "edge density and thickness are 1"),
     "fibers.groom_auto": (lambda p: p["scene.generator"] == "groom", "not a groom"),

@@ -350,13 +350,15 @@ AUTO_KEYS = ("fibers.rings", "fibers.phi_step", "fibers.phi_increment", "fibers.
 
 
 @needs_data
-def test_groom_auto_is_off_by_default():
+def test_groom_auto_is_on_by_default_and_off_is_the_plain_fill():
     from app.params import BY_KEY
     from app.presets import resolve_params
 
     p, _ = resolve_params(str(DATA / "sintel_hair.tfx"))
-    assert not p["fibers.groom_auto"]
-    assert all(p[k] == BY_KEY[k].default for k in AUTO_KEYS)
+    assert p["fibers.groom_auto"] and BY_KEY["fibers.groom_auto"].default is True
+    assert p["fibers.rings"] == 7 and p["fibers.fiber_radius"] != BY_KEY["fibers.fiber_radius"].default
+    off, _ = resolve_params(str(DATA / "sintel_hair.tfx"), ["fibers.groom_auto=false"])
+    assert all(off[k] == BY_KEY[k].default for k in AUTO_KEYS)
 
 
 @needs_data
@@ -441,8 +443,11 @@ def test_groom_auto_is_reported_by_info():
     lines = [x for x in info_lines(p, scene_from_groom(p), "x") if x.startswith("groom auto")]
     assert len(lines) == 1 and "px in radius at the default camera" in lines[0]
     assert lines[0].endswith("set by you, kept: fibers.rings = 4"), lines[0]
-    p0, _ = resolve_params(str(DATA / "Ratboy_mohawk.tfx"))
-    assert not [x for x in info_lines(p0, scene_from_groom(p0), "x") if x.startswith("groom auto")]
+    p0, _ = resolve_params(str(DATA / "Ratboy_mohawk.tfx"))          # on by default: reported, nothing kept
+    line = [x for x in info_lines(p0, scene_from_groom(p0), "x") if x.startswith("groom auto")]
+    assert len(line) == 1 and "set by you" not in line[0] and "groom_children 0" in line[0], line
+    off, _ = resolve_params(str(DATA / "Ratboy_mohawk.tfx"), ["fibers.groom_auto=false"])
+    assert not [x for x in info_lines(off, scene_from_groom(off), "x") if x.startswith("groom auto")]
 
 
 @needs_data
@@ -452,11 +457,18 @@ def test_groom_auto_in_the_viewer():
 
     s = AppState()
     assert s.open_groom(DATA / "Curly_100.ply")
+    # opened under the look on screen, as `vfiber view GROOM --preset default`: the look's fibers, the
+    # groom's own scene (its interpolated children)
+    under, _ = resolve_params(str(DATA / "Curly_100.ply"), look="default")
     assert s.params["fibers.rings"] == 10 and s.params["fibers.phi_step"] == 1.0
-    assert s.edit("fibers.groom_auto", True)
-    want, _ = resolve_params(str(DATA / "Curly_100.ply"), ["fibers.groom_auto=true"])
+    assert s.params["scene.groom_children"] == under["scene.groom_children"] > 0
+    assert s.edit("fibers.groom_auto", False) and s.edit("fibers.groom_auto", True)
+    want, _ = resolve_params(str(DATA / "Curly_100.ply"))
     assert all(s.params[k] == want[k] for k in AUTO_KEYS)
     assert s.edit("fibers.rings", 6) and s.params["fibers.rings"] == 6      # a slider moved afterwards wins
+    # more children: the fiber sliders follow the thinner containers, the children stay as set
+    assert s.edit("scene.groom_children", 3) and s.params["scene.groom_children"] == 3
+    assert s.params["fibers.rings"] == 10 and s.params["fibers.phi_step"] != want["fibers.phi_step"]
 
 
 @needs_data

@@ -12,6 +12,11 @@ same camera and drawn in numpy (a DDA line per segment, then widened), and the v
 * IoU against the strands drawn as lines as wide as their containers (per-strand guides only): what the
   virtual silhouette should be if every guide sat exactly on its strand.
 
+With interpolated children (``scene.groom_children``, which ``fibers.groom_auto`` gives Curly_100) the
+containers stand between the strands by design, so precision and IoU are taken against the containers' own
+axes (their rows), and recall stays against the file's strands: every strand is still covered, and no fiber
+strays from the container it belongs to.
+
 The floors and the numbers measured when they were set are in ``FLOORS`` and docs/grooms.md.
 """
 
@@ -70,8 +75,23 @@ FLOORS = {0: (0.98, 0.98, 0.85), CLUSTER: (0.85, 0.98, None)}
 
 
 def groom_params(name: str, **values) -> Params:
+    """The groom's parameters as given, without the per-groom defaults (``fibers.groom_auto`` acts where a
+    face resolves its target: :func:`product_params`)."""
     return Params({"scene.generator": "groom", "scene.groom_file": str(DATA / name),
                    **{k.replace("__", "."): v for k, v in values.items()}})
+
+
+def product_params(name: str, *sets: str) -> Params:
+    """The groom's parameters as ``vfiber render GROOM --set ...`` makes them: the per-groom defaults on."""
+    from app.presets import resolve_params
+
+    return resolve_params(str(DATA / name), list(sets))[0]
+
+
+def axes(scene: Scene) -> list[np.ndarray]:
+    """Every container's axis, world units: the guides the scene really has (the strands and any children)."""
+    rows = scene.segments.astype(np.float64)
+    return list(np.stack([rows[:, 0:3], rows[:, 4:7]], axis=1) + scene.origin)
 
 
 # --------------------------------------------------------------------------------------------------------
@@ -131,16 +151,19 @@ def draw_strands(cam: Camera, strands: list[np.ndarray], size, radius: float = 0
 
 
 def coverage(cam: Camera, scene: GroomScene, strands: list[np.ndarray], hit: np.ndarray, size) -> dict:
-    """Agreement of the virtual hits with the original strands (module docstring)."""
+    """Agreement of the virtual hits with the original strands (module docstring); with children, precision
+    and IoU against the containers' axes, recall against the strands."""
     lines = draw_strands(cam, strands, size)
-    depth = project(cam, np.concatenate(strands), size)[1]
+    held = axes(scene) if scene.source.children else strands
+    near = draw_strands(cam, held, size) if scene.source.children else lines
+    depth = project(cam, np.concatenate(held), size)[1]
     focal = size[1] / (2 * math.tan(math.radians(cam.fov) / 2))
     reach_px = 1.5 * float(scene.source.radii.max()) * focal / float(depth.min())
     out = {"strand_px": int(lines.sum()), "virtual_px": int(hit.sum()),
            "recall": float((lines & dilate(hit, 1)).sum() / lines.sum()),
-           "precision": float((hit & dilate(lines, int(math.ceil(reach_px)) + 1)).sum() / max(hit.sum(), 1))}
+           "precision": float((hit & dilate(near, int(math.ceil(reach_px)) + 1)).sum() / max(hit.sum(), 1))}
     if not scene.source.cluster:
-        wide = draw_strands(cam, strands, size, float(scene.source.radii[0]))
+        wide = draw_strands(cam, held, size, float(np.median(scene.source.radii)))
         out["iou"] = float((wide & hit).sum() / (wide | hit).sum())
     return out
 
@@ -186,11 +209,17 @@ def test_shared_file_makes_the_expected_scene(name: str) -> None:
 
 
 @needs_data
+@pytest.mark.parametrize("fill", ["defaults", "plain"])
 @pytest.mark.parametrize("cluster", [0, CLUSTER], ids=["per-strand", f"cluster{CLUSTER}"])
 @pytest.mark.parametrize("name", list(SHARED))
-def test_shared_file_renders_over_its_strands(renderer, name: str, cluster: int) -> None:
-    p = groom_params(name, scene__groom_cluster=cluster)
+def test_shared_file_renders_over_its_strands(renderer, name: str, cluster: int, fill: str) -> None:
+    """``defaults``: as the command line makes the groom (fibers.groom_auto: 79-431 fibers per container,
+    children on Curly_100); ``plain``: 3,600 fibers per container, one container per strand."""
+    p = (product_params(name, f"scene.groom_cluster={cluster}") if fill == "defaults"
+         else groom_params(name, scene__groom_cluster=cluster))
     scene = scene_from_groom(p)
+    if fill == "defaults" and name == "Curly_100.ply" and not cluster:
+        assert scene.source.children > 0, "groom_auto gives Curly_100 interpolated children"
     renderer.set_scene(scene)
     cam = Camera.from_params(p, scene)
     hit = renderer.render(p, cam, SIZE, outputs=("ids",)).hit
@@ -271,9 +300,16 @@ def test_cli_renders_and_describes_a_groom_file(tmp_path: Path) -> None:
     text = info.stdout
     for needle in ("strands          100 of 100 in the file", "vertices         1,165",
                    "up axis          file x -> +Z", "segments         3 per guide, 300 containers",
-                   "fibers rendered  360,000 = 100 guides x 3,600 per container: 3,600.0 fibers per file strand",
-                   "GPU virtual      57,984 B", "GPU explicit     12,984,000 B"):
+                   "fibers rendered  43,100 = 100 guides x 431 per container: 431.0 fibers per file strand",
+                   "groom auto       rings 10, phi_step 2.9005", "GPU virtual      57,984 B",
+                   "GPU explicit     1,575,600 B"):
         assert needle in text, f"{needle!r} not in:\n{text}"
+    assert "groom_children 0" in text and "\nchildren " not in text, "Bangs_100 does not fold: no children"
+    plain = _vfiber("info", str(DATA / "Bangs_100.hair"), "--set", "fibers.groom_auto=false").stdout
+    for needle in ("fibers rendered  360,000 = 100 guides x 3,600 per container: 3,600.0 fibers per file strand",
+                   "GPU virtual      57,984 B", "GPU explicit     12,984,000 B"):
+        assert needle in plain, f"{needle!r} not in:\n{plain}"
+    assert "groom auto" not in plain
 
 
 @needs_data

@@ -13,6 +13,7 @@ import numpy as np
 
 from ...params import Params
 from .. import containers
+from . import children
 from ..containers import Scene
 from .groom import Groom, GroomError, guide_colors
 from .guides import resample_many, strands_to_guides
@@ -76,12 +77,24 @@ def groom_scene(groom: Groom, p: Params, seconds: dict[str, float] | None = None
     if scale != 1.0:
         radii = radii * scale
         radius_reason = f"{scale:g} x ({radius_reason}): scene.groom_radius_scale"
+    per_guide = p["scene.groom_children"]
+    grown = None
+    if per_guide:
+        # thinner containers between the strands (children.py), blended on one arc-length parameter; the
+        # segment count is still the guides' (a blend's cusp is the blend's, not the groom's)
+        grown = children.with_children(children.common_parameter(fine), per_guide, seed=p["scene.seed"])
+        radii = radii * grown.narrow
+        fine = list(grown.polylines[:len(fine)])
+        radius_reason = (f"{grown.narrow:.3g} x ({radius_reason}): 1 / sqrt(1 + {per_guide}), a guide and its "
+                         f"{per_guide} interpolated children share one container's cross-section "
+                         f"(scene.groom_children)")
     taper = p["scene.taper"]
     radius_reason += (f"; the tip radius is {1.0 - taper:g} x the root's (scene.taper = {taper:g})" if taper
                       else "; scene.radius is the generators' (grooms scale theirs with scene.groom_radius_scale)")
-    if len(fine) > containers.MAX_GUIDES:
-        raise GroomError(f"{name}: {len(fine):,} guides is more than the renderer's {containers.MAX_GUIDES:,}; set "
-                         f"scene.groom_cluster to make fewer")
+    guides_total = len(fine) if grown is None else len(grown.polylines)
+    if guides_total > containers.MAX_GUIDES:
+        raise GroomError(f"{name}: {guides_total:,} guides is more than the renderer's {containers.MAX_GUIDES:,}; "
+                         f"set scene.groom_cluster to make fewer")
     if given:
         n = given
         p95 = float(np.percentile(chord_errors(fine, n) / radii, 95))
@@ -94,8 +107,18 @@ def groom_scene(groom: Groom, p: Params, seconds: dict[str, float] | None = None
     polylines = np.stack(fine) if same else resample_many(fine, n)
     if same:
         p95 = 0.0
-    native = same and not cluster_used          # the guides are the file's own vertices
+    native = same and not cluster_used and grown is None      # the guides are the file's own vertices
     warnings = list(groom.warnings)
+    parents = np.arange(len(polylines))
+    if grown is not None:
+        kids = grown.polylines[len(fine):]
+        polylines = np.concatenate([polylines, kids if kids.shape[1] == n + 1 else resample_many(list(kids), n)])
+        polylines, unfolded = grown.settle(polylines, MAX_TURN_DEG)
+        parents = grown.parents
+        radii = radii[parents]
+        if unfolded:
+            warnings.append(f"{unfolded:,} of {len(kids):,} interpolated children fold at {n} segments (their "
+                            f"blend turns past {MAX_TURN_DEG:g} degrees): each takes its nearest strand's shape")
     folded = int((~(np.linalg.norm(np.diff(polylines, axis=1), axis=2) > 0).all(axis=1)).sum())
     if folded:
         warnings.append(f"{folded:,} guides have a zero-length piece at {n} segments (a strand that comes back "
@@ -117,9 +140,10 @@ def groom_scene(groom: Groom, p: Params, seconds: dict[str, float] | None = None
         up=groom.up, up_reason=groom.up_reason, scale=groom.scale, bbox=groom.bbox(), cluster=cluster_used,
         cluster_requested=cluster,
         guides=len(polylines), segments=n, segments_reason=reason, native=native, chord_p95=p95,
-        radius_reason=radius_reason, radii=radii, seconds=seconds, warnings=warnings,
+        radius_reason=radius_reason, radii=radii, children=per_guide, seconds=seconds, warnings=warnings,
         max_turn=float(turns.max()) if turns.size else 0.0)
-    return GroomScene(rows, origin, groom.path.stem, len(polylines), guide_colors(groom, labels, len(polylines)),
+    colors = guide_colors(groom, labels, int(parents.max()) + 1 if len(parents) else 0)
+    return GroomScene(rows, origin, groom.path.stem, len(polylines), None if colors is None else colors[parents],
                       source=source, params=p)
 
 
@@ -137,12 +161,18 @@ def scene_from_groom(p: Params) -> GroomScene:
     :class:`GroomError` for anything wrong with the file, including a file without one usable strand.
     """
     t0 = time.perf_counter()
+    groom = groom_of(p)
+    return groom_scene(groom, p, {"load": time.perf_counter() - t0})
+
+
+def groom_of(p: Params) -> Groom:
+    """``scene.groom_file`` loaded under ``p`` (``scene.groom_up``, ``scene.groom_scale``); a
+    :class:`GroomError` names the whole path, as a person gave it."""
     path = Path(p["scene.groom_file"])
     try:
-        groom = load_groom(path, up=p["scene.groom_up"], scale=p["scene.groom_scale"])
+        return load_groom(path, up=p["scene.groom_up"], scale=p["scene.groom_scale"])
     except GroomError as exc:  # the loaders name the file by its base name; a person needs the whole path
         text = str(exc)
         if text.startswith(f"{path.name}:") and str(path) != path.name:
             raise GroomError(f"{path}{text[len(path.name):]}") from None
         raise
-    return groom_scene(groom, p, {"load": time.perf_counter() - t0})

@@ -1,8 +1,12 @@
-"""Per-groom fiber defaults (``fibers.groom_auto``): rings, spacing, fiber thickness and a soft clump edge
-chosen from the groom itself, so that each shared groom looks right without hand-tuning.
+"""Per-groom defaults (``fibers.groom_auto``): interpolated children for curls tighter than a container,
+then rings, spacing, fiber thickness and a soft clump edge chosen from the groom itself, so that each shared
+groom looks right without hand-tuning.
 
-Two facts of a groom decide them: its container radius R (0.75 x the median root spacing, times
-``scene.groom_radius_scale``: :func:`~.guides.default_radius`) and the size of a pixel at the default
+First the children (``scene.groom_children``, :func:`auto_children`): a groom whose containers fold back
+at many of their joints (the container wider than the curl: Curly_100) gets thinner containers between its
+strands until few fold; every other groom gets none. Then two facts decide the fibers: the container radius
+R (0.75 x the median root spacing, times ``scene.groom_radius_scale``: :func:`~.guides.default_radius`,
+narrowed by the children: :func:`~.children.radius_scale`) and the size of a pixel at the default
 camera, which frames the whole groom: ``PX_PER_HALF_DIAGONAL`` x half the groom's bounding-box diagonal at
 640x360 (the command line's default size). From R / pixel:
 
@@ -27,8 +31,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...params import Params
+from . import children
+from .guides import resample_many
 
-AUTO_KEYS = ("fibers.rings", "fibers.phi_step", "fibers.phi_increment", "fibers.even_spacing",
+AUTO_KEYS = ("scene.groom_children", "fibers.rings", "fibers.phi_step", "fibers.phi_increment", "fibers.even_spacing",
              "fibers.fiber_radius", "fibers.edge_density", "fibers.edge_width")
 PX_PER_HALF_DIAGONAL = 0.0048
 """A pixel at the default camera and 640x360, over half the groom's bounding-box diagonal: measured 0.0044
@@ -46,6 +52,14 @@ quarter). Ratboy_mohawk's 0.99 px containers at depth 10 lost coverage against t
 0.895, against 0.906 with vfiber's plain defaults); at 20 they keep it (0.903): its spikes are one or two
 containers across."""
 MIN_RINGS, MAX_RINGS = 2, 10
+FOLD_TRIGGER = 0.10
+"""``auto_children`` adds children to a groom only when more than this share of its joints fold their
+containers back: Curly_100 62%, Bangs_100 3% (a few kinked strands, which children made worse: IoU 0.929
+-> 0.903-0.922 with one child each), the other shared grooms under 1%."""
+MAX_FOLD = 0.025
+"""... and then as many as leave at most this share folding (Curly_100: 15 children, 2.3%; 12 leave 4.3%,
+20 leave 1.1%): see docs/grooms.md, "Curly: interpolated children"."""
+FOLD_SAMPLE = 2000             # strands the fold is judged on (auto_children)
 EDGE_DENSITY, EDGE_WIDTH = 0.3, 0.5
 EDGE_MIN_RINGS = 4             # fewer rings are too coarse for a profile: thinning ring 0 of 2 thins 3/4 of the area
 
@@ -63,6 +77,28 @@ def core_depth(ratio: float) -> float:
     """Fibers a ray through the axis meets, for containers ``ratio`` pixels in radius (see
     :data:`SMALL_CONTAINER_PX`)."""
     return CORE_DEPTH * max(1.0, SMALL_CONTAINER_PX / ratio)
+
+
+def auto_children(strands, radius: float, segments: int = 1, seed: int = 0) -> int:
+    """Interpolated children per guide (``scene.groom_children``) for one guide per strand of radius
+    ``radius``. None unless more than ``FOLD_TRIGGER`` of the guides' joints fold their containers back
+    (:func:`~.segments.fold_fraction`) at the scene's segment count (``segments``; 1: automatic, as the build
+    chooses it for the radius); then the fewest that bring that share to ``MAX_FOLD`` or less, up to
+    ``children.MAX_CHILDREN``. Judged on a seeded sample of at most ``FOLD_SAMPLE`` strands."""
+    from .segments import auto_segments, fold_fraction
+
+    if len(strands) > FOLD_SAMPLE:
+        pick = np.sort(np.random.default_rng(seed).choice(len(strands), FOLD_SAMPLE, replace=False))
+        strands = [strands[i] for i in pick]
+
+    def folds(n_children: int) -> float:
+        r = radius * children.radius_scale(n_children)
+        n = segments if segments > 1 else auto_segments(strands, np.full(len(strands), r), seed=seed)[0]
+        return fold_fraction(resample_many(strands, n), r)
+
+    if folds(0) <= FOLD_TRIGGER:
+        return 0
+    return next((n for n in range(1, children.MAX_CHILDREN) if folds(n) <= MAX_FOLD), children.MAX_CHILDREN)
 
 
 def auto_fibers(radius: float, pixel: float, rings: int | None = None, fiber_radius: float | None = None) -> dict:
@@ -87,18 +123,31 @@ def auto_fibers(radius: float, pixel: float, rings: int | None = None, fiber_rad
 
 def groom_defaults(p: Params, given: set[str] | frozenset[str] = frozenset()) -> tuple[Params, GroomDefaults]:
     """``p`` with the per-groom fiber defaults in every key of :data:`AUTO_KEYS` not in ``given``."""
+    from .build import groom_of
     from .guides import strands_to_guides
-    from .load import load_groom
 
-    groom = load_groom(p["scene.groom_file"], up=p["scene.groom_up"], scale=p["scene.groom_scale"])
+    groom = groom_of(p)
     # the root-spacing radius exactly as the scene's build finds it (build.groom_scene)
-    radius = float(strands_to_guides(groom, 1, seed=p["scene.seed"]).radii[0]) * p["scene.groom_radius_scale"]
+    base = strands_to_guides(groom, 1, seed=p["scene.seed"])
+    radius = float(base.radii[0]) * p["scene.groom_radius_scale"]
+    kept = [groom.strands[i] for i in np.flatnonzero(base.labels >= 0)]
+    clustered = 0 < p["scene.groom_cluster"] < len(kept)
+    if "scene.groom_children" in given:
+        per_guide = p["scene.groom_children"]
+    elif clustered:
+        per_guide = 0               # clusters are thick on purpose: the person asked for few clumps
+    else:
+        per_guide = auto_children(kept, radius, p["scene.segments"], p["scene.seed"])
+    if not clustered:
+        radius *= children.radius_scale(per_guide)
     lo, hi = groom.bbox()
     pixel = max(PX_PER_HALF_DIAGONAL * 0.5 * float(np.linalg.norm(hi - lo)), 1e-30)
     values = auto_fibers(radius, pixel, p["fibers.rings"] if "fibers.rings" in given else None,
                          p["fibers.fiber_radius"] if "fibers.fiber_radius" in given else None)
+    values["scene.groom_children"] = per_guide
     applied = {k: v for k, v in values.items() if k not in given}
-    reason = (f"containers {radius / pixel:.2f} px in radius at the default camera (640x360): fibers "
+    reason = (f"{per_guide} interpolated children per strand; " if per_guide else "")
+    reason += (f"containers {radius / pixel:.2f} px in radius at the default camera (640x360): fibers "
               f"{2 * values['fibers.fiber_radius'] * radius / pixel:.2f} px wide, {values['fibers.rings']} rings, "
               f"{core_depth(radius / pixel):.3g} fibers deep through the core, the outer "
               f"{values['fibers.edge_width']:g} of the radius at {values['fibers.edge_density']:g} of the core's "
@@ -113,9 +162,9 @@ def auto_report(p: Params) -> str | None:
     if not (p["fibers.groom_auto"] and p["scene.generator"] == "groom"):
         return None
     _, d = groom_defaults(p)
-    # rings and fiber radius decide the rest: a person's value there is taken as given, then compared
+    # children, rings and fiber radius decide the rest: a person's value there is taken as given, then compared
     primary: set[str] = set()
-    for key in ("fibers.rings", "fibers.fiber_radius"):     # the fiber radius follows the rings: in order
+    for key in ("scene.groom_children", "fibers.rings", "fibers.fiber_radius"):   # each follows the one before
         if p[key] != d.values[key]:
             primary.add(key)
             _, d = groom_defaults(p, primary)

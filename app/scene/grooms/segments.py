@@ -49,6 +49,23 @@ def joint_turns(guides: np.ndarray) -> np.ndarray:
     return np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
 
 
+def fold_fraction(guides: np.ndarray, radii) -> float:
+    """Share of the inner joints of guides (S, M, 3) with root radii ``radii`` where the container's fibers
+    fold back: a fiber on the inside of a joint that turns by theta, at the radius r from the axis, loses
+    r tan(theta / 2) of each neighbouring piece to the bisecting plane, so where that is more than half the
+    shorter piece it runs backwards (the discrete form of a radius past the radius of curvature: Curly_100's
+    balls and shells). 0 with no inner joint."""
+    guides = np.asarray(guides, np.float64)
+    if guides.shape[1] < 3 or len(guides) == 0:
+        return 0.0
+    d = np.diff(guides, axis=1)
+    h = np.linalg.norm(d, axis=2)
+    turn = np.radians(joint_turns(guides))
+    r = np.broadcast_to(np.asarray(radii, np.float64).reshape(-1, 1), turn.shape)
+    folds = r * np.tan(np.minimum(turn, np.radians(179.9)) / 2) > 0.5 * np.minimum(h[:, 1:], h[:, :-1])
+    return float(folds.mean())
+
+
 def _joints_ok(polylines: Sequence[np.ndarray], n_segments: int) -> bool:
     """Every guide resampled to ``n_segments`` has pieces of non-zero length (a strand that comes back to
     where it was cannot be a container there) and joints within :data:`MAX_TURN_DEG`. In chunks of guides,

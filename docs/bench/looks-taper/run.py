@@ -14,9 +14,11 @@ from app.bench import looks  # noqa: E402
 from app.bench.suites import Env  # noqa: E402
 from app.gl.context import create_headless  # noqa: E402
 
-VARIANTS = {"before": [], "tip taper": ["strand.tip_width=0", "strand.taper_start=0.4"],
-            "tip taper, length jitter 0.5": ["strand.tip_width=0", "strand.taper_start=0.4",
-                                             "fibers.length_jitter=0.5"]}
+# measured on the plain fill, the groom defaults of the time (looks.REFERENCE_SETS: groom_auto off)
+PLAIN = list(looks.REFERENCE_SETS)
+VARIANTS = {"before": PLAIN, "tip taper": PLAIN + ["strand.tip_width=0", "strand.taper_start=0.4"],
+            "tip taper, length jitter 0.5": PLAIN + ["strand.tip_width=0", "strand.taper_start=0.4",
+                                                     "fibers.length_jitter=0.5"]}
 
 out = Path(sys.argv[1])
 out.mkdir(parents=True, exist_ok=True)
