@@ -22,10 +22,12 @@ is ~2^-12 of the container radius across the fiber (about 2% of a default fiber'
 the segment's length along it. A fiber that is cut before a segment gets t0 = t1 there (no area).
 
 Drawing: one instanced draw of 4-vertex triangle strips; the vertex shader expands each end sideways,
-facing the camera, by the fiber's radius (fiber_radius * w); the fragment shader rebuilds the round fiber's
-normal across the ribbon and shades with ``shading/hair.glsl``, the virtual renderer's Kajiya-Kay. Depth is
-the rasterizer's, so the early depth test stays on; along one ray the order of depths is the order of
-distances, so the nearest fiber wins, as in the ray caster.
+facing the camera, by the fiber's radius (fiber_radius * w); a ribbon end on a joint plane is lengthened to
+the plane and both joint planes clip the ribbon (gl_ClipDistance), so the ribbons of two segments meet on
+the plane where a square end would leave a wedge open or overlap. The fragment shader rebuilds the round
+fiber's normal across the ribbon and shades with the virtual renderer's shading files (the same joint-
+blended tangent, shading/tangent.glsl). Depth is the rasterizer's, so the early depth test stays on; along
+one ray the order of depths is the order of distances, so the nearest fiber wins, as in the ray caster.
 
 Why vertex attributes rather than storage-buffer pulling: on llvmpipe the attribute fetch is compiled into
 the vertex pipeline and was about 10x faster than pulling the same data from storage buffers by
@@ -466,7 +468,14 @@ class ExplicitRenderer:
         if self.plan.instances:
             # a tapered ribbon bends where its fiber starts to thin: two quads (ribbon.vert)
             strip = 6 if self._ends is not None else 4
-            self._vao(prog).render(moderngl.TRIANGLE_STRIP, vertices=strip, instances=self.plan.instances)
+            # the joint planes clip each ribbon (ribbon.vert: gl_ClipDistance 0 and 1)
+            for plane in CLIP_PLANES:
+                ctx.enable_direct(plane)
+            try:
+                self._vao(prog).render(moderngl.TRIANGLE_STRIP, vertices=strip, instances=self.plan.instances)
+            finally:
+                for plane in CLIP_PLANES:
+                    ctx.disable_direct(plane)
             frame.draws = 1
         if "color" in outputs:
             rgba = _read(fbo, 0, "f1", size)
@@ -481,6 +490,7 @@ class ExplicitRenderer:
 
 
 SHADING_MODELS = {"kajiya_kay": 0, "marschner": 1}
+CLIP_PLANES = (0x3000, 0x3001)      # GL_CLIP_DISTANCE0, 1: a ribbon's root-side and tip-side joint planes
 
 
 def _look_uniforms(p: Params, fibers_per_container: int) -> dict:

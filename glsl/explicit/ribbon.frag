@@ -9,6 +9,7 @@
 #include "shading/kajiya_kay.glsl"
 #include "shading/marschner.glsl"
 #include "shading/fiber_color.glsl"
+#include "shading/tangent.glsl"
 
 #ifndef SHADING_MODEL
 #define SHADING_MODEL 0
@@ -19,7 +20,10 @@
 
 in vec3 vPos;
 in vec3 vTangent;
-in vec3 vShadeTangent;
+in vec2 vJoint;                 // distance from the root and tip joint planes (ribbon.vert)
+flat in vec3 vJointN0;
+flat in vec3 vJointN1;
+flat in vec3 vSlope;
 in float vAcross;
 in vec4 vInside;                // offset of the fiber's axis from the container's axis (w d), height z
 in float vRadius;               // container radius w
@@ -81,7 +85,9 @@ void main() {
     // a cone's normal leans toward its apex: n - R'(s) T for a radius R falling along the fiber
     N = normalize(N + vTilt * R);
 #endif
-    vec3 T = normalize(vShadeTangent);
+    vec3 T = normalize(joint_blend(vJointN0, vJointN1, vJoint.x, vJoint.y) + vSlope);
+    // the shading normal turns with the tangent, as the virtual fiber's (shading/tangent.glsl)
+    vec3 Ns = turn_with(N, R, T);
 
     vec3 color = fiber_color(vId.x - 1u, vV, vLook.x - 0.5);
     float roughness = clamp(uRoughness * (1.0 + uRoughnessVariation * 2.0 * (vLook.y - 0.5)), 0.02, 1.0);
@@ -90,11 +96,11 @@ void main() {
 #if SHADING_MODEL == 1
     vec3 direct = shade_marschner(T, V, L, color, roughness);
 #else
-    vec3 direct = shade_kajiya_kay(T, N, V, L, color, roughness);
+    vec3 direct = shade_kajiya_kay(T, Ns, V, L, color, roughness);
 #endif
     // shade the point of the round fiber's surface that this pixel sees, not the ribbon's axis
     float through = light_through(vFiberRadius * vRadius * N, L);
-    vec3 radiance = uLightIntensity * through * direct + ambient_fill(N, color, occlusion);
+    vec3 radiance = uLightIntensity * through * direct + ambient_fill(Ns, color, occlusion);
     outColor = vec4(tone_map(radiance), 1.0);
     outId = vId;
     outGeom = vec4(N, length(vPos));

@@ -11,6 +11,7 @@
 #ifndef TAPER
 #define TAPER 0
 #endif
+#define LAST_PAIR (TAPER == 0 ? 1 : 2)
 #if TAPER
 #include "fibers/taper.glsl"
 #endif
@@ -34,7 +35,10 @@ uniform float uRingRadius[MAX_RINGS];   // fiber radius by ring, a fraction of t
 
 out vec3 vPos;                  // camera-relative position on the ribbon
 out vec3 vTangent;              // the fiber's direction, as the ribbon runs
-out vec3 vShadeTangent;         // the direction the virtual renderer shades with (joint-blended guide axis)
+out vec2 vJoint;                // the axis point's distance from the root and tip joint planes (shading)
+flat out vec3 vJointN0;         // the joint planes' normals: the shading direction blends between them
+flat out vec3 vJointN1;
+flat out vec3 vSlope;           // the fiber's lean from its container's axis per unit height (taper)
 out float vAcross;              // -1 .. 1 across the ribbon
 out vec4 vInside;               // the axis point's offset from the container axis (w d), local height z
 out float vRadius;              // container radius w there
@@ -78,18 +82,41 @@ void main() {
 #endif
     float side = (gl_VertexID & 1) == 0 ? -1.0 : 1.0;
     vec3 d = aFiber.xyz;
+    vec3 dPdt = aRowB.xyz - aRowA.xyz + (aRowB.w - aRowA.w) * d;
+    vec3 T = normalize(dPdt);
+    // A fiber kinks at a joint, and a ribbon cut square to its own direction would leave a wedge open on
+    // the bend's outer side and overlap the next segment's ribbon on the inner side (seams along every
+    // joint). So the corner of a ribbon end on a joint plane that falls short of the plane is lengthened
+    // along the fiber to reach it, and both planes clip the ribbon (gl_ClipDistance): two segments'
+    // ribbons meet on the plane, as the virtual fibers do. A fiber's own end (cut inside the segment) is
+    // no plane and stays square.
+    vec3 onAxis = mix(aRowA.xyz, aRowB.xyz, t) + mix(aRowA.w, aRowB.w, t) * d;
+    vec3 toEye = -(onAxis + uSceneFromCamera);
+    vec3 acrossDir = cross(T, toEye) / max(length(cross(T, toEye)), 1e-30);
+    vec3 corner = onAxis + side * vFiberRadius * mix(aRowA.w, aRowB.w, t) * width * acrossDir;
+    float tol = 2e-3 * h;       // half-float t0, t1: within ~5e-4 h of the plane they were cut at
+    float grow = 0.0;
+    if (pair == 0 && abs(dot(aRowC.xyz, onAxis - aRowA.xyz)) < tol)
+        grow = -max(dot(aRowC.xyz, corner - aRowA.xyz), 0.0) / max(dot(aRowC.xyz, T), 0.25);
+    if (pair == LAST_PAIR && abs(dot(aRowD.xyz, aRowB.xyz - onAxis)) < tol)
+        grow = max(dot(aRowD.xyz, aRowB.xyz - corner), 0.0) / max(dot(aRowD.xyz, T), 0.25);
+    t += grow / length(dPdt);
     float w = mix(aRowA.w, aRowB.w, t);
     vec3 pCam = mix(aRowA.xyz, aRowB.xyz, t) + w * d + uSceneFromCamera;
-    vec3 T = normalize(aRowB.xyz - aRowA.xyz + (aRowB.w - aRowA.w) * d);     // dP/dt
     vec3 across = cross(T, -pCam);
     float al = length(across);
     float halfWidth = al > 0.0 ? vFiberRadius * w * width / al : 0.0;
 
     vAxis = vec4(axis / h, h);
     vEnds = vec2(aRowC.w <= 0.0 ? 1.0 : 0.0, aRowD.w >= 1.0 ? 1.0 : 0.0);
-    // stages/container.frag: the guide's direction blended from one joint plane's normal to the other's
-    // (each the mean of two segments' axes), plus the taper's tilt of an off-axis fiber
-    vShadeTangent = normalize(normalize(mix(aRowC.xyz, aRowD.xyz, t)) + (aRowB.w - aRowA.w) / h * d);
+    // shading/fiber_shading.glsl: the guide's direction blended between the joint planes by where the
+    // point lies between them (shading/tangent.glsl), plus the taper's tilt of an off-axis fiber. Both
+    // distances are linear along the fiber, so the rasterizer interpolates them exactly.
+    onAxis = mix(aRowA.xyz, aRowB.xyz, t) + w * d;
+    vJoint = vec2(dot(aRowC.xyz, onAxis - aRowA.xyz), dot(aRowD.xyz, aRowB.xyz - onAxis));
+    vJointN0 = aRowC.xyz;
+    vJointN1 = aRowD.xyz;
+    vSlope = (aRowB.w - aRowA.w) / h * d;
     vInside = vec4(w * d, t * h);
     vRadius = w;
     vV = mix(aRowC.w, aRowD.w, t);
@@ -99,4 +126,7 @@ void main() {
     vId = uvec4(uint(aGuide) + 1u, uint(ring), uint(inContainer - uRingFirst[ring]), uint(row));
     vLook = vec3(float(aLook & 0xffu) / 255.0, float(aLook >> 8) / 255.0, length(d));
     gl_Position = uClipFromCamera * vec4(vPos, 1.0);
+    vec3 P = vPos - uSceneFromCamera;
+    gl_ClipDistance[0] = dot(aRowC.xyz, P - aRowA.xyz);
+    gl_ClipDistance[1] = dot(aRowD.xyz, aRowB.xyz - P);
 }
