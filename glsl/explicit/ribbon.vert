@@ -6,12 +6,19 @@
 // TAPER 1: the fiber thins toward its own tip as the virtual one does (fibers/taper.glsl, the same
 // function): its radius is fiber_radius * w * min(1, L(Z)), linear in the height on the root-width part
 // and on the cone, so the strip has 6 vertices, a pair where the cone starts, and ends at the cone's apex.
+// FILTER 1 (quality.filter = coverage, the filtered passes of app/render/explicit.py): the ribbon is widened
+// by the footprint, a tent of half-width uFootprint * distance across it (fibers/coverage.glsl's), so every
+// pixel the footprint of the fiber reaches gets a fragment; ribbon.frag turns its place across into the
+// share of the footprint the fiber covers.
 
 #include "explicit/ring_of.glsl"
 #ifndef TAPER
 #define TAPER 0
 #endif
 #define LAST_PAIR (TAPER == 0 ? 1 : 2)
+#ifndef FILTER
+#define FILTER 0
+#endif
 #if TAPER
 #include "fibers/taper.glsl"
 #endif
@@ -32,6 +39,7 @@ uniform vec3 uSceneFromCamera;  // scene origin minus camera position
 uniform mat4 uClipFromCamera;   // projection * view rotation (camera at the origin)
 uniform int uFibersPerContainer;
 uniform float uRingRadius[MAX_RINGS];   // fiber radius by ring, a fraction of the container radius
+uniform float uFootprint;       // FILTER: the footprint's half-width per unit distance (fibers/coverage.glsl)
 
 out vec3 vPos;                  // camera-relative position on the ribbon
 out vec3 vTangent;              // the fiber's direction, as the ribbon runs
@@ -49,6 +57,8 @@ flat out vec3 vLook;            // tint, roughness (0 .. 1), |c|
 out float vV;                   // guide parameter (0 root .. 1 tip): the colour along the strand
 flat out float vTilt;           // how fast the radius falls along the fiber (its cone; 0 on the root part)
 flat out float vFiberRadius;    // the fiber's ring's radius (the clump profile thins the outer rings')
+out vec3 vCross;                // FILTER: offset across the fiber, its radius and the footprint's half-width
+                                // (world units at the fragment: x, r, w of footprint_coverage)
 
 void main() {
     int row = gl_InstanceID / uFibersPerContainer;
@@ -93,7 +103,8 @@ void main() {
     vec3 onAxis = mix(aRowA.xyz, aRowB.xyz, t) + mix(aRowA.w, aRowB.w, t) * d;
     vec3 toEye = -(onAxis + uSceneFromCamera);
     vec3 acrossDir = cross(T, toEye) / max(length(cross(T, toEye)), 1e-30);
-    vec3 corner = onAxis + side * vFiberRadius * mix(aRowA.w, aRowB.w, t) * width * acrossDir;
+    float grown = float(FILTER != 0) * uFootprint * length(toEye);
+    vec3 corner = onAxis + side * (vFiberRadius * mix(aRowA.w, aRowB.w, t) * width + grown) * acrossDir;
     float tol = 2e-3 * h;       // half-float t0, t1: within ~5e-4 h of the plane they were cut at
     float grow = 0.0;
     if (pair == 0 && abs(dot(aRowC.xyz, onAxis - aRowA.xyz)) < tol)
@@ -105,7 +116,10 @@ void main() {
     vec3 pCam = mix(aRowA.xyz, aRowB.xyz, t) + w * d + uSceneFromCamera;
     vec3 across = cross(T, -pCam);
     float al = length(across);
-    float halfWidth = al > 0.0 ? vFiberRadius * w * width / al : 0.0;
+    float radius = vFiberRadius * w * width;
+    float footprint = float(FILTER != 0) * uFootprint * length(pCam);
+    float halfWidth = al > 0.0 ? (radius + footprint) / al : 0.0;
+    vCross = vec3(side * (radius + footprint), radius, footprint);
 
     vAxis = vec4(axis / h, h);
     vEnds = vec2(aRowC.w <= 0.0 ? 1.0 : 0.0, aRowD.w >= 1.0 ? 1.0 : 0.0);
