@@ -300,6 +300,8 @@ def contact_sheet(per_scene: list[tuple[str, dict, str]], path: Path, zoom: int 
         cols.append((acc, crop(pics[acc])))
         filt = [FILTERED] if FILTERED in pics else []
         cols += [(m, crop(pics[m])) for m in filt]
+        if VIRTUAL + FILTERED in pics:          # explicit scenes: the virtual filter's frame beside it
+            cols.append((VIRTUAL + FILTERED, crop(pics[VIRTUAL + FILTERED])))
         cols += [("none: change x4", crop(diff("none"))), (f"{best}: change x4", crop(diff(best)))]
         cols += [(f"{m}: change x4", crop(diff(m))) for m in filt]
         row = []
