@@ -134,6 +134,7 @@ EXTREMES = {
     "tiny-fibers": {"fibers.fiber_radius": 1e-4},
     "thick-fibers": {"fibers.rings": 1, "fibers.fiber_radius": 0.5, "camera.distance": 2.0},
     "grazing-down-the-axis": {"camera.elevation": 89.9},
+    "tapered-tips": {"strand.tip_width": 0.1},       # ribbons of six vertices, narrowing to a point
 }
 
 
