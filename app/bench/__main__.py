@@ -48,9 +48,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 # Reports with their own command lines: `vfiber bench extremes ...`, `vfiber bench quality ...`,
-# `vfiber bench grooms-sheet ...`, `vfiber bench antialias ...`
+# `vfiber bench grooms-sheet ...`, `vfiber bench antialias ...`, `vfiber bench highlights ...`
 DELEGATED = {"extremes": "app.bench.extremes", "quality": "app.bench.quality",
-             "grooms-sheet": "app.bench.grooms", "antialias": "app.bench.antialias"}
+             "grooms-sheet": "app.bench.grooms", "antialias": "app.bench.antialias",
+             "highlights": "app.bench.highlights"}
 
 
 def main(argv: list[str] | None = None) -> int:

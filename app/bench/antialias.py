@@ -63,6 +63,16 @@ MODES: dict[str, tuple[dict, int]] = {
 }
 FILTERED = "filtered"
 SCENES = ("default", "fur-ball far", "sintel_hair.tfx")
+# The explicit baseline's coverage treatment (app/render/explicit.py, quality.filter = coverage): the same
+# scenes drawn as ribbons, against a reference of the explicit frames themselves; it has no supersample or
+# MSAA modes. "virtual none" and "virtual filtered" are the virtual renderer's frames of the same scene held
+# against that reference: the filtered frames of both should look alike. Not in the default run (the
+# explicit reference is 512 explicit frames); pass them with --scene.
+EXPLICIT = " (explicit)"
+EXPLICIT_SCENES = tuple(n + EXPLICIT for n in SCENES)
+VIRTUAL = "virtual "
+EXPLICIT_MODES = ("none", "viewer accumulation 16", "filtered", "filtered 0.6 px", VIRTUAL + "none",
+                  VIRTUAL + "filtered")
 
 
 # --- metrics (pure numpy: tests/bench/test_antialias_bench.py holds them to known answers) -------------------
@@ -118,6 +128,7 @@ class Subject:
     cam: object
     renderer: object
     fiber_px: float           # fiber width in pixels at the scene centre's distance (what "thin" means)
+    virtual: object = None    # explicit scenes: the virtual renderer of the same scene
 
 
 def load_subject(ctx, programs, name: str, size) -> Subject:
@@ -128,6 +139,8 @@ def load_subject(ctx, programs, name: str, size) -> Subject:
     from ..scene.generators import build_scene
     from .grooms import HAIR_DATA
 
+    explicit = name.endswith(EXPLICIT)
+    name = name.removesuffix(EXPLICIT)
     if name == "default":
         p = find_preset("default").params
     elif name == "fur-ball far":
@@ -139,20 +152,27 @@ def load_subject(ctx, programs, name: str, size) -> Subject:
                                     "../shared/hair-data beside the checkout)")
         p, _ = resolve_params(str(path), [])
     else:
-        raise ValueError(f"unknown antialias bench scene {name!r}: use one of {', '.join(SCENES)}")
+        raise ValueError(f"unknown antialias bench scene {name!r}: use one of {', '.join(SCENES + EXPLICIT_SCENES)}")
     assert isinstance(p, Params)
     scene = build_scene(p)
     cam = Camera.from_params(p, scene, aspect=size[0] / size[1])
     r = Renderer(ctx, programs)
     r.set_scene(scene)
+    virtual = None
+    if explicit:
+        from ..render.explicit import ExplicitRenderer
+
+        virtual, r = r, ExplicitRenderer(ctx, programs=programs)
+        r.set_scene(scene, p)
     radius = float(np.median(scene.segments[:, 3]))
     dist = float(np.linalg.norm(np.asarray(cam.position, np.float64) - np.asarray(cam.target, np.float64)))
     px = 2.0 * dist * np.tan(np.radians(cam.fov) / 2) / size[1]
-    return Subject(name, p, cam, r, 2.0 * radius * p["fibers.fiber_radius"] / px)
+    return Subject(name + (EXPLICIT if explicit else ""), p, cam, r, 2.0 * radius * p["fibers.fiber_radius"] / px,
+                   virtual)
 
 
 def _mode_params(s: Subject, mode: str):
-    values, _ = MODES[mode]
+    values, _ = MODES[mode.removeprefix(VIRTUAL)]
     # every mode starts from the unfiltered frame: a groom or preset that sets its own antialias is reset
     return s.p.replace(**{"quality.supersample": 1, "quality.msaa": 0, **values})
 
@@ -161,7 +181,9 @@ def render_mode(s: Subject, mode: str, size, offset=(0.0, 0.0)) -> np.ndarray:
     """The picture a mode shows, in display levels (H, W, 3) float64. The viewer's accumulation is not
     rounded to 8 bits until the screen, so it stays float here too; the others are the renderer's uint8."""
     p = _mode_params(s, mode)
-    n = MODES[mode][1]
+    n = MODES[mode.removeprefix(VIRTUAL)][1]
+    if mode.startswith(VIRTUAL):
+        return s.virtual.render(p, s.cam, size, outputs=("color",), offset=offset).color.astype(np.float64)
     if n:
         from ..viewer.display import supersample_offsets
 
@@ -206,6 +228,8 @@ def measure_scene(s: Subject, size, reps: int, ref_n: int = REFERENCE_N) -> tupl
     ref_moved, cov_moved = render_reference(s, size, (MOVE_PX, 0.0), n=ref_n)
     covered = (cov > 0) | (cov_moved > 0)
     modes = [m for m in MODES if MODES[m][0].get("quality.msaa", 0) <= ctx.max_samples]
+    if s.virtual is not None:
+        modes = list(EXPLICIT_MODES)
     costs = {m: cost_s(s, m, size, reps) for m in modes}
     rows, pictures = [], {"reference": ref, "reference moved": ref_moved}
     for m in modes:
@@ -233,7 +257,7 @@ def best_mode(rows: list[dict]) -> str:
     """The existing mode with the lowest stability figure (ties: the lower mean error); the filtered mode is
     what they are held against, not one of them."""
     cands = [r for r in rows if not r["mode"].startswith("reference") and r["mode"] != "none"
-             and not r["mode"].startswith(FILTERED)]
+             and not r["mode"].startswith(FILTERED) and not r["mode"].startswith(VIRTUAL)]
     return min(cands, key=lambda r: (r["stability_changed_pct"], r["error_mean_levels"]))["mode"]
 
 
@@ -276,6 +300,8 @@ def contact_sheet(per_scene: list[tuple[str, dict, str]], path: Path, zoom: int 
         cols.append((acc, crop(pics[acc])))
         filt = [FILTERED] if FILTERED in pics else []
         cols += [(m, crop(pics[m])) for m in filt]
+        if VIRTUAL + FILTERED in pics:          # explicit scenes: the virtual filter's frame beside it
+            cols.append((VIRTUAL + FILTERED, crop(pics[VIRTUAL + FILTERED])))
         cols += [("none: change x4", crop(diff("none"))), (f"{best}: change x4", crop(diff(best)))]
         cols += [(f"{m}: change x4", crop(diff(m))) for m in filt]
         row = []
@@ -396,6 +422,9 @@ def run(size=(320, 180), reps: int = 5, scenes=SCENES, ref_n: int = REFERENCE_N,
                 out.mkdir(parents=True, exist_ok=True)
                 turntable_change(s, size, out / "turntable_change.png")
             s.renderer.release_targets()
+            if s.virtual is not None:
+                s.virtual.release_targets()
+                s.renderer.release()
         if out is not None:
             header = (f"Date {date.today()}, commit {short_commit()}, `{command}`. Machine: "
                       f"{platform.processor() or platform.machine()}, {hc.renderer}, {hc.version}. Image "
@@ -422,7 +451,8 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m app.bench.antialias", description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="160x90, 8x8 reference, 2 timed pictures")
     ap.add_argument("--size", type=_size, default=None, help="image size WxH (default 320x180)")
-    ap.add_argument("--scene", action="append", choices=SCENES, help="repeatable (default: all three)")
+    ap.add_argument("--scene", action="append", choices=SCENES + EXPLICIT_SCENES,
+                    help="repeatable (default: the three virtual ones)")
     ap.add_argument("--out", type=Path, default=Path("docs/bench/antialias"))
     args = ap.parse_args(argv)
     size = args.size or ((160, 90) if args.quick else (320, 180))

@@ -22,10 +22,23 @@ is ~2^-12 of the container radius across the fiber (about 2% of a default fiber'
 the segment's length along it. A fiber that is cut before a segment gets t0 = t1 there (no area).
 
 Drawing: one instanced draw of 4-vertex triangle strips; the vertex shader expands each end sideways,
-facing the camera, by the fiber's radius (fiber_radius * w); the fragment shader rebuilds the round fiber's
-normal across the ribbon and shades with ``shading/hair.glsl``, the virtual renderer's Kajiya-Kay. Depth is
-the rasterizer's, so the early depth test stays on; along one ray the order of depths is the order of
-distances, so the nearest fiber wins, as in the ray caster.
+facing the camera, by the fiber's radius (fiber_radius * w); a ribbon end on a joint plane is lengthened to
+the plane and both joint planes clip the ribbon (gl_ClipDistance), so the ribbons of two segments meet on
+the plane where a square end would leave a wedge open or overlap. The fragment shader rebuilds the round
+fiber's normal across the ribbon and shades with the virtual renderer's shading files (the same joint-
+blended tangent, shading/tangent.glsl). Depth is the rasterizer's, so the early depth test stays on; along
+one ray the order of depths is the order of distances, so the nearest fiber wins, as in the ray caster.
+
+Thin fibers (quality.filter = coverage, ``_filtered_color``): the virtual filter's treatment, for a fair
+A/B. Each ribbon is widened by the footprint (a tent of quality.filter_width pixels' half-width at its
+distance) and each fragment's alpha is the share of the footprint its fiber covers (the same
+footprint_coverage as glsl/fibers/coverage.glsl). Dense hair puts hundreds of such fragments in a pixel,
+so they are composited without sorting: the nearest fragment's distance, then the optical depth summed into
+BINS depth bins behind it, then each fragment's colour weighted by its alpha and the light the bins in front
+of it let through; a fullscreen pass puts each pixel's opaque depth into the depth buffer first, so the
+colour pass shades only what can show (llvmpipe skips nothing for a discard). Weighted blended OIT (one
+colour pass, weights by depth alone) was measured and not kept: its weights cannot know how opaque the
+fibers in front are (docs/antialias.md, "The explicit baseline"). Ids and depth stay the opaque ribbons'.
 
 Why vertex attributes rather than storage-buffer pulling: on llvmpipe the attribute fetch is compiled into
 the vertex pipeline and was about 10x faster than pulling the same data from storage buffers by
@@ -48,10 +61,16 @@ from ..gl.shaders import ProgramCache
 from ..params import Params
 from ..units import human_bytes
 from ..scene.containers import SEGMENT_BYTES, Scene
+from . import look
 from .camera import Camera
 from .renderer import Frame, clear_targets, light_direction, release_framebuffers
 
 DEFAULT_BUDGET_BYTES = 1 << 30     # 1 GiB of fiber buffers; on llvmpipe "GPU" memory is system memory
+# quality.filter = coverage (ribbon.vert/.frag FILTER): the depth bins a pixel's fragments are composited
+# by, each BIN_RADII of the scene's median container radius deep, behind the pixel's nearest fragment
+BINS = 16
+BIN_RADII = 0.5
+COMPOSITES = {"bins": 0, "weighted": 1}    # depth-binned transmittance (used) or weighted blended OIT
 INSTANCE_BYTES = 12                # per (segment, fiber): half4(d.xyz, t0), half t1, uint16 tint | rough
 TAPER_BYTES = 2                    # per (segment, fiber) when fibers taper: half v_end (the fiber's own end)
 ROW_BYTES = SEGMENT_BYTES          # per segment row: the scene's own row (p0 r0, p1 r1, n0 v0, n1 v1, fx guide)
@@ -260,8 +279,12 @@ class ExplicitRenderer:
     """
 
     def __init__(self, ctx: moderngl.Context, budget_bytes: int = DEFAULT_BUDGET_BYTES,
-                 programs: ProgramCache | None = None):
+                 programs: ProgramCache | None = None, composite: str = "bins"):
         self.ctx = ctx
+        if composite not in COMPOSITES:
+            raise ValueError(f"composite {composite!r}: one of {', '.join(COMPOSITES)}")
+        # how quality.filter = coverage composites a pixel's fragments (docs/antialias.md says why bins)
+        self.composite = composite
         self.budget_bytes = int(budget_bytes)
         self.programs = programs or ProgramCache()
         self.scene: Scene | None = None
@@ -275,6 +298,7 @@ class ExplicitRenderer:
         self._ends: moderngl.Buffer | None = None       # v_end per instance, only when fibers taper
         self._vaos: dict[int, moderngl.VertexArray] = {}
         self._targets: dict[tuple, moderngl.Framebuffer] = {}
+        self._filter_fbos: dict[tuple, dict[str, moderngl.Framebuffer]] = {}
         # bound while targets are released: moderngl restores the previous binding after creating a
         # framebuffer, and rebinding a released one is an invalid operation
         self._parking: moderngl.Framebuffer | None = None
@@ -356,19 +380,26 @@ class ExplicitRenderer:
         self._rows = self._fibers = self._colors = self._ends = None
 
     def release_targets(self) -> None:
-        if not self._targets:
+        if not self._targets and not self._filter_fbos:
             return
         if self._parking is None:
             self._parking = self.ctx.framebuffer(self.ctx.renderbuffer((1, 1)))
         release_framebuffers(self._parking, self._targets)
+        fbos = {(size, name): fbo for size, group in self._filter_fbos.items() for name, fbo in group.items()}
+        release_framebuffers(self._parking, fbos)
+        self._filter_fbos.clear()
 
     # --- drawing -----------------------------------------------------------------------------------
-    def program(self, p: Params) -> moderngl.Program:
+    def program(self, p: Params, filter_pass: int = 0) -> moderngl.Program:
+        """The ribbon program: the opaque ribbons (``filter_pass`` 0), or one of the filtered passes (1
+        nearest distance, 2 depth bins, 3 colour: ribbon.frag)."""
         defines = {"MAX_RINGS": MAX_RINGS, "SHADING_MODEL": SHADING_MODELS[p["look.model"]],
                    # a traced shadow needs the virtual traversal; the baseline keeps the density estimate
                    "SHADOW_MODE": 0 if p["look.self_shadow"] == "off" else 1,
                    # the ribbons narrow toward each fiber's tip only where set_scene stored the ends
                    "TAPER": int(self._ends is not None)}
+        if filter_pass:
+            defines.update(fibers.glsl_defines(), FILTER=filter_pass, COMPOSITE=COMPOSITES[self.composite])
         return self.programs.get(self.ctx, "explicit/ribbon.vert", "explicit/ribbon.frag", defines)
 
     def _vao(self, prog: moderngl.Program) -> moderngl.VertexArray:
@@ -406,11 +437,8 @@ class ExplicitRenderer:
         ring_radius = np.zeros(MAX_RINGS, np.float32)
         ring_radius[:lay.rings] = lay.ring_radius          # the clump profile's fiber radius by ring
         w, h = size
-        clip = cam.clip_from_camera(w / h).astype(np.float64)
-        # a sub-pixel ray offset moves the image the other way: shift NDC by -2 offset / size
-        shift = np.identity(4)
-        shift[0, 3], shift[1, 3] = -2.0 * offset[0] / w, -2.0 * offset[1] / h
-        clip = (shift @ clip).astype(np.float32)
+        th = np.tan(np.radians(cam.fov) / 2)
+        clip = self._clip(cam, size, offset).astype(np.float32)
         values = {
             "uRings": lay.rings, "uFibersPerContainer": lay.fibers_per_container,
             "uFiberRadius": lay.fiber_radius,
@@ -419,6 +447,10 @@ class ExplicitRenderer:
             "uAmbient": p["look.ambient"], "uRoughness": p["look.roughness"],
             "uTintVariation": p["look.tint_variation"], "uRoughnessVariation": p["look.roughness_variation"],
             "uTipWidth": p["strand.tip_width"], "uTaperStart": p["strand.taper_start"],
+            # quality.filter = coverage: the virtual filter's footprint (renderer.py), the depth bins
+            "uFootprint": p["quality.filter_width"] * 2.0 * th / h,
+            "uBinWidth": BIN_RADII * self._median_radius(),
+            "uNearest": 0, "uBins0": 1, "uBins1": 2, "uBins2": 3, "uBins3": 4,
             **_look_uniforms(p, lay.fibers_per_container),
         }
         if self._key[0] == "fibers made elsewhere":   # set_fibers: one "ring", the uploaded count and radius
@@ -433,13 +465,41 @@ class ExplicitRenderer:
         if "uRingRadius" in prog:
             prog["uRingRadius"].write(ring_radius[:prog["uRingRadius"].array_length].tobytes())
         prog["uClipFromCamera"].write(clip.T.copy().tobytes())
+        look.apply_lighting(prog, p, cam.position, cam.target)    # the key and the rig's other lights
+
+    def _set_cutoff_uniforms(self, prog: moderngl.Program, p: Params, cam: Camera, size, offset) -> None:
+        clip = self._clip(cam, size, offset)
+        prog["uClipFromCamera"].write(clip.T.astype(np.float32).tobytes())
+        prog["uCameraFromClip"].write(np.linalg.inv(clip).T.astype(np.float32).tobytes())
+        prog["uSize"].value = (float(size[0]), float(size[1]))
+        prog["uBinWidth"].value = BIN_RADII * self._median_radius()
+        for i, name in enumerate(("uNearest", "uBins0", "uBins1", "uBins2", "uBins3")):
+            prog[name].value = i
+
+    @staticmethod
+    def _clip(cam: Camera, size, offset) -> np.ndarray:
+        """float64 projection * view rotation (camera at the origin), shifted by a sub-pixel ``offset``."""
+        w, h = size
+        clip = cam.clip_from_camera(w / h).astype(np.float64)
+        # a sub-pixel ray offset moves the image the other way: shift NDC by -2 offset / size
+        shift = np.identity(4)
+        shift[0, 3], shift[1, 3] = -2.0 * offset[0] / w, -2.0 * offset[1] / h
+        return shift @ clip
+
+    def _median_radius(self) -> float:
+        rows = self.scene.segments
+        return float(np.median(rows[:, 3])) if len(rows) else 1.0
 
     def render(self, p: Params, cam: Camera, size: tuple[int, int], *, outputs=("color", "ids"),
                offset=(0.0, 0.0)) -> Frame:
         """Rasterize every fiber. ``outputs``: any of color, ids, geom (normal xyz, distance), draw (render,
         read nothing back: for timing, like the virtual renderer's). Fibers are
         regenerated first if a fiber-layout parameter changed since ``set_scene`` (the explicit method's
-        price for a slider move; the virtual one only uploads uniforms)."""
+        price for a slider move; the virtual one only uploads uniforms).
+
+        With quality.filter = coverage the colour is the filtered one (``_filtered_color``; ``coverage``
+        then holds its alpha) and the ids, normal and depth stay the opaque ribbons' nearest fiber, drawn
+        as without the filter (only when asked for)."""
         if self.scene is None:
             raise RuntimeError("ExplicitRenderer.render: call set_scene first")
         if _geometry_key(p) != self._key and self._key[0] != "fibers made elsewhere":
@@ -452,35 +512,136 @@ class ExplicitRenderer:
         ctx = self.ctx
         size = (int(size[0]), int(size[1]))
         frame = Frame()
-        fbo = self._target(size)
-        fbo.use()
-        ctx.viewport = (0, 0) + size
-        clear_targets(fbo)
-        ctx.disable(moderngl.BLEND)
-        ctx.disable(moderngl.CULL_FACE)
-        ctx.enable(moderngl.DEPTH_TEST)
-        ctx.depth_func = "<"
-        prog = self.program(p)
+        filtered = p["quality.filter"] == "coverage"
+        bg = np.asarray(p["look.background"])
+        bg8 = np.round(np.clip(bg, 0, 1) ** (1 / 2.2) * 255).astype(np.uint8)
+        if not filtered or {"ids", "geom"} & set(outputs):
+            fbo = self._target(size)
+            fbo.use()
+            ctx.viewport = (0, 0) + size
+            clear_targets(fbo)
+            ctx.disable(moderngl.BLEND)
+            ctx.disable(moderngl.CULL_FACE)
+            ctx.enable(moderngl.DEPTH_TEST)
+            ctx.depth_func = "<"
+            frame.draws += self._draw(self.program(p), p, cam, size, offset)
+            if "color" in outputs and not filtered:
+                rgba = _read(fbo, 0, "f1", size)
+                frame.color = np.where(rgba[..., 3:4] > 0, rgba[..., :3], bg8)
+                frame.coverage = (rgba[..., 3] > 0).astype(np.float32)
+            if "ids" in outputs:
+                frame.ids = _read(fbo, 1, "u4", size)
+            if "geom" in outputs:
+                frame.geom = _read(fbo, 2, "f4", size)
+        if filtered and ({"color", "draw"} & set(outputs)):
+            color, coverage, draws = self._filtered_color(p, cam, size, offset, bg8, "color" in outputs)
+            frame.draws += draws
+            if "color" in outputs:
+                frame.color, frame.coverage = color, coverage
+        return frame
+
+    def _draw(self, prog: moderngl.Program, p: Params, cam: Camera, size, offset) -> int:
+        """One instanced draw of every ribbon with ``prog`` into the bound framebuffer; the draws made."""
         self._set_uniforms(prog, p, cam, size, offset)
         self._bind_guide_colors(prog, p)
-        if self.plan.instances:
-            # a tapered ribbon bends where its fiber starts to thin: two quads (ribbon.vert)
-            strip = 6 if self._ends is not None else 4
+        if not self.plan.instances:
+            return 0
+        # a tapered ribbon bends where its fiber starts to thin: two quads (ribbon.vert)
+        strip = 6 if self._ends is not None else 4
+        # the joint planes clip each ribbon (ribbon.vert: gl_ClipDistance 0 and 1)
+        for plane in CLIP_PLANES:
+            self.ctx.enable_direct(plane)
+        try:
             self._vao(prog).render(moderngl.TRIANGLE_STRIP, vertices=strip, instances=self.plan.instances)
-            frame.draws = 1
-        if "color" in outputs:
-            rgba = _read(fbo, 0, "f1", size)
-            bg = np.asarray(p["look.background"])
-            bg8 = np.round(np.clip(bg, 0, 1) ** (1 / 2.2) * 255).astype(np.uint8)
-            frame.color = np.where(rgba[..., 3:4] > 0, rgba[..., :3], bg8)
-        if "ids" in outputs:
-            frame.ids = _read(fbo, 1, "u4", size)
-        if "geom" in outputs:
-            frame.geom = _read(fbo, 2, "f4", size)
-        return frame
+        finally:
+            for plane in CLIP_PLANES:
+                self.ctx.disable_direct(plane)
+        return 1
+
+    def _filter_targets(self, size) -> dict[str, moderngl.Framebuffer]:
+        if size not in self._filter_fbos:
+            tex = lambda: self.ctx.texture(size, 4, dtype="f4")     # noqa: E731
+            nearest, bins, accum = [tex()], [tex() for _ in range(BINS // 4)], [tex(), tex()]
+            for t in (*nearest, *bins):
+                t.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            self._filter_fbos[size] = {"nearest": self.ctx.framebuffer(nearest),
+                                       "bins": self.ctx.framebuffer(bins),
+                                       "accum": self.ctx.framebuffer(accum, self.ctx.depth_renderbuffer(size))}
+        return self._filter_fbos[size]
+
+    def _filtered_color(self, p: Params, cam: Camera, size, offset, bg8: np.ndarray, read: bool):
+        """quality.filter = coverage: every ribbon widened by the footprint, its alpha the share of the
+        footprint the fiber covers (ribbon.frag), composited per pixel without sorting: (1) the nearest
+        fragment's distance, (2) optical depth in BINS depth bins behind it, (3) each fragment's colour
+        weighted by its alpha and the transmittance in front of it read from the bins, and its optical
+        depth. Alpha is 1 - exp(-optical depth); the colour, the weighted mean in linear light, goes over
+        the background as the virtual filter's does (display levels, premultiplied). Returns (colour
+        (H, W, 3) uint8 or None, alpha (H, W) float32 or None, draws)."""
+        ctx = self.ctx
+        t = self._filter_targets(size)
+        ctx.viewport = (0, 0) + size
+        ctx.disable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.CULL_FACE)
+        ctx.enable(moderngl.BLEND)
+        ctx.blend_func = moderngl.ONE, moderngl.ONE
+        draws = 0
+        try:
+            t["nearest"].use()
+            t["nearest"].clear(1e30, 0.0, 0.0, 0.0)
+            ctx.blend_equation = moderngl.MIN
+            draws += self._draw(self.program(p, 1), p, cam, size, offset)
+            ctx.blend_equation = moderngl.FUNC_ADD
+            t["nearest"].color_attachments[0].use(0)
+            if self.composite == "bins":
+                t["bins"].use()
+                t["bins"].clear(0.0, 0.0, 0.0, 0.0)
+                draws += self._draw(self.program(p, 2), p, cam, size, offset)
+                for i, b in enumerate(t["bins"].color_attachments):
+                    b.use(1 + i)
+            acc = t["accum"]
+            acc.use()
+            acc.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+            if self.composite == "bins":
+                # each pixel's opaque distance into the depth buffer (cutoff.frag): the colour pass shades
+                # only what lies in front of it
+                cut = self.programs.get(ctx, "stages/fullscreen.vert", "explicit/cutoff.frag")
+                self._set_cutoff_uniforms(cut, p, cam, size, offset)
+                ctx.disable(moderngl.BLEND)
+                ctx.enable(moderngl.DEPTH_TEST)
+                ctx.depth_func = "1"
+                acc.color_mask = ((False,) * 4,) * 2
+                ctx.vertex_array(cut, []).render(vertices=3)
+                acc.color_mask = ((True,) * 4,) * 2
+                acc.depth_mask = False
+                ctx.depth_func = "<"
+                ctx.enable(moderngl.BLEND)
+                draws += 1
+            draws += self._draw(self.program(p, 3), p, cam, size, offset)
+        finally:
+            t["accum"].depth_mask = True
+            ctx.depth_func = "<"
+            ctx.blend_equation = moderngl.FUNC_ADD
+            ctx.blend_func = moderngl.DEFAULT_BLENDING
+            ctx.disable(moderngl.BLEND)
+            ctx.enable(moderngl.DEPTH_TEST)
+        if not read:
+            return None, None, draws
+        accum = _read(t["accum"], 0, "f4", size).astype(np.float64)
+        if self.composite == "bins":        # every fragment's optical depth, those the cutoff skipped too
+            depth = sum(_read(t["bins"], i, "f4", size).astype(np.float64).sum(-1) for i in range(BINS // 4))
+        else:
+            depth = _read(t["accum"], 1, "f4", size)[..., 0].astype(np.float64)
+        alpha = 1.0 - np.exp(-depth)
+        weight = accum[..., 3:4]
+        linear = np.divide(accum[..., :3], weight, out=np.zeros_like(accum[..., :3]), where=weight > 0)
+        shown = np.clip(linear, 0.0, 1.0) ** (1.0 / 2.2) * 255.0
+        a = alpha[..., None]
+        color = np.clip(np.round(shown * a + (1.0 - a) * bg8), 0, 255).astype(np.uint8)
+        return color, alpha.astype(np.float32), draws
 
 
 SHADING_MODELS = {"kajiya_kay": 0, "marschner": 1}
+CLIP_PLANES = (0x3000, 0x3001)      # GL_CLIP_DISTANCE0, 1: a ribbon's root-side and tip-side joint planes
 
 
 def _look_uniforms(p: Params, fibers_per_container: int) -> dict:

@@ -18,6 +18,7 @@
 #include "shading/kajiya_kay.glsl"
 #include "shading/marschner.glsl"
 #include "shading/fiber_color.glsl"
+#include "shading/tangent.glsl"
 
 #ifndef SHADING_MODEL
 #define SHADING_MODEL 0
@@ -117,14 +118,16 @@ Shaded shade_fiber_at(Segment seg, UnitRay ur, FiberHit hit, vec3 P, vec4 given,
     o.N = N;
     if (!shade) return o;
 
-    // the fiber's direction: d/dz of (w(z) c(v(z)), z), w the local container radius at the hit. The
-    // guide's own direction is blended from one joint plane's normal to the other's (each is the mean of
-    // the two segments' axes), so a bent guide shades smoothly across its joints.
+    // the fiber's direction: d/dz of (w(z) c(v(z)), z), w the local container radius at the hit; the
+    // guide's own direction is blended between the joint planes (tangent.glsl), so a bent guide shades
+    // smoothly across its joints
     float wHit = seg.r0 / (1.0 - seg.kappa * P.z);
-    float zHit = P.z * wHit;
-    vec3 axis = normalize(mix(seg.n0, seg.n1, clamp(zHit / seg.h, 0.0, 1.0)));
+    vec3 axis = joint_blended_axis(seg.n0, seg.n1, seg.h, P * wHit);
     vec2 slope = seg.kappa * hit.c + wHit * hit.dcdv * (seg.v1 - seg.v0) / seg.h;
     vec3 T = normalize(worldFromLocal * (axis + vec3(slope, 0.0)));
+    // the normal turns from the straight fiber's direction with it; a section cut by a cap or joint faces
+    // the ray and keeps that
+    vec3 Ns = hit.kind == 2 ? N : turn_with(N, normalize(worldFromLocal * vec3(slope, 1.0)), T);
 
     vec3 color = fiber_color(seg.guide, unit_to_v(seg, P.z), tint);
     float roughness = clamp(uRoughness * (1.0 + uRoughnessVariation * 2.0 * rough), 0.02, 1.0);
@@ -132,7 +135,7 @@ Shaded shade_fiber_at(Segment seg, UnitRay ur, FiberHit hit, vec3 P, vec4 given,
     float occlusion = given.z >= 0.0 ? given.w : mix(1.0, exp(-3.0 * (1.0 - length(hit.c))), uShadowDensity);
     ContainerShadow cs = ContainerShadow(transpose(worldFromLocal), hit.c,
                                          SHADOW_MODE == 0 ? 0.0 : uShadowDensity * uFiberDensity);
-    vec3 radiance = shade_lights(T, N, V, color, roughness, occlusion,
+    vec3 radiance = shade_lights(T, Ns, V, color, roughness, occlusion,
                                  given.z >= 0.0 ? given.z : light_transmittance(seg, ur, hit, P, uLightDir), cs);
     o.color = tone_map(radiance);
     return o;

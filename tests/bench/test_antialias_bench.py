@@ -134,3 +134,14 @@ def test_unknown_scene_says_what_is_allowed(ctx):
 
     with pytest.raises(ValueError, match="use one of default"):
         aa.load_subject(ctx, ProgramCache(), "teapot", (16, 9))
+
+
+def test_explicit_scene_runs_its_own_modes(tmp_path):
+    """An explicit scene: the explicit baseline's modes and the virtual frames of the same scene, all held
+    against the explicit reference."""
+    rows = aa.run(size=(32, 18), reps=1, scenes=("default (explicit)",), ref_n=2, out=tmp_path)
+    assert [r["mode"] for r in rows] == list(aa.EXPLICIT_MODES) + ["reference 2x2 (box)"]
+    assert {r["scene"] for r in rows} == {"default (explicit)"}
+    for r in rows:
+        assert 0.0 <= r["stability_changed_pct"] <= 100.0 and r["error_mean_levels"] >= 0.0
+    assert (tmp_path / "contact_sheet.png").stat().st_size > 0
