@@ -45,12 +45,13 @@ class ContainerBvh:
         return int(self.nodes.nbytes + self.order.nbytes)
 
 
-def bvh_nbytes(n_segments: int) -> int:
-    """Bytes of the hierarchy over n segments (build_bvh's nodes and order), without building it."""
+def bvh_words(n_segments: int) -> tuple[int, int]:
+    """How many vec4 words the hierarchy over n segments holds (build_bvh's nodes) and how many leaf-order
+    entries, without building it."""
     leaves = 1
     while leaves < n_segments:
         leaves *= 2
-    return (2 * leaves - 1) * 32 + 4 * max(n_segments, 1)
+    return 2 * (2 * leaves - 1), max(n_segments, 1)
 
 
 def segment_cylinders(segments: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -32,7 +32,7 @@ from . import look
 from ..gl.shaders import ProgramCache
 from ..params import ParamError, Params
 from ..scene.containers import Scene, joint_slope
-from .bvh import ContainerBvh, build_bvh, bvh_nbytes
+from .bvh import ContainerBvh, build_bvh, bvh_words
 from .camera import Camera
 
 MAX_RINGS = fibers.MAX_RINGS
@@ -69,6 +69,11 @@ COVER_CAP = 48
 # The proxy rectangle's corners as two triangles (glsl/stages/container.vert places them per segment).
 _QUAD = np.array([[0, 0], [1, 0], [1, 1], [0, 0], [1, 1], [0, 1]], dtype=np.float32)
 WALK_CAP = 4096                   # box tests per walk (glsl/geometry/bvh.glsl)
+# The walk reads the scene's words (hierarchy nodes, leaf order, segments) from images of WORD_ROW texels a
+# row (geometry/bvh.glsl: WORD_ROW_SHIFT): llvmpipe gathers an image per SIMD batch, a storage buffer one lane
+# and one component at a time. Image units: NODE_UNIT, ORDER_UNIT, SEGMENT_UNIT (bvh.glsl's bindings).
+WORD_ROW = 4096
+NODE_UNIT, ORDER_UNIT, SEGMENT_UNIT = 7, 8, 9
 VISIBILITY = ("auto", "proxies", "walk")
 # auto: the walk once the proxies would stack this many layers per covered pixel (proxy_layers). Measured
 # on llvmpipe, 640x360 exact, CPU time per frame, proxies vs walk: default preset (2.5 layers) 55 vs 90 ms,
@@ -112,6 +117,7 @@ class Renderer:
         self.scene: Scene | None = None
         self.bvh: ContainerBvh | None = None
         self._buffers: dict[str, moderngl.Buffer] = {}
+        self._words: dict[str, moderngl.Texture] = {}       # the walk's images of the scene (word_image)
         self._progress = ctx.buffer(reserve=4)
         self._quad = ctx.buffer(_QUAD.tobytes())
         self._vaos: dict[tuple, moderngl.VertexArray] = {}
@@ -124,7 +130,7 @@ class Renderer:
     def set_scene(self, scene: Scene) -> None:
         """Upload the containers and their hierarchy once. Nothing here depends on how many fibers are
         drawn: five vec4 per segment, two per hierarchy node, one index per segment."""
-        for buf in self._buffers.values():
+        for buf in (*self._buffers.values(), *self._words.values()):
             buf.release()
         for vao in self._vaos.values():
             vao.release()
@@ -133,17 +139,19 @@ class Renderer:
         self.scene = scene
         self.bvh = build_bvh(scene)
         data = scene.segments if scene.n_segments else np.zeros((1, 20), np.float32)
-        self._buffers = {"segments": self.ctx.buffer(np.ascontiguousarray(data, np.float32).tobytes()),
-                         "nodes": self.ctx.buffer(self.bvh.nodes.tobytes()),
-                         "order": self.ctx.buffer(np.maximum(self.bvh.order, 0).astype(np.uint32).tobytes()
-                                                  if scene.n_segments else bytes(4))}
+        self._buffers = {"segments": self.ctx.buffer(np.ascontiguousarray(data, np.float32).tobytes())}
         if scene.guide_colors is not None:      # the groom file's colours, two vec4 per guide
             self._buffers["guide_colors"] = self.ctx.buffer(scene.guide_color_rows().tobytes())
+        # the walk's copies (the proxies draw the segments from the vertex buffer above)
+        self._words = {"nodes": word_image(self.ctx, self.bvh.nodes.reshape(-1, 4)),
+                       "order": word_image(self.ctx, np.maximum(self.bvh.order, 0).astype(np.uint32)[:, None]),
+                       "segments": word_image(self.ctx, np.asarray(data, np.float32).reshape(-1, 4))}
 
     @property
     def scene_gpu_bytes(self) -> int:
-        """Bytes of GPU buffers that hold the scene: container segments plus their hierarchy."""
-        return sum(b.size for b in self._buffers.values()) + self._quad.size
+        """Bytes of GPU buffers and images that hold the scene: container segments plus their hierarchy."""
+        words = sum(t.width * t.height * t.components * 4 for t in self._words.values())
+        return sum(b.size for b in self._buffers.values()) + self._quad.size + words
 
     def frame_gpu_bytes(self, size: tuple[int, int]) -> int:
         """Bytes of the per-pixel targets of a frame at ``size`` (colour, ids, geometry, walk state): sized
@@ -326,9 +334,8 @@ class Renderer:
         self.ctx.scissor = region
 
     def _bind_scene(self) -> None:
-        self._buffers["nodes"].bind_to_storage_buffer(0)
-        self._buffers["order"].bind_to_storage_buffer(1)
-        self._buffers["segments"].bind_to_storage_buffer(2)
+        for name, unit in (("nodes", NODE_UNIT), ("order", ORDER_UNIT), ("segments", SEGMENT_UNIT)):
+            self._words[name].bind_to_image(unit, read=True, write=False)
         self._progress.bind_to_storage_buffer(3)
         self._bind_guide_colors()
 
@@ -841,11 +848,28 @@ def release_framebuffers(parking: moderngl.Framebuffer, targets: dict) -> None:
     targets.clear()
 
 
+def word_rows(words: int) -> int:
+    """Rows of WORD_ROW texels that hold ``words`` texels (at least one)."""
+    return max(1, -(-int(words) // WORD_ROW))
+
+
+def word_image(ctx: moderngl.Context, words: np.ndarray) -> moderngl.Texture:
+    """An image of ``words`` ((n, 4) float32 or (n, 1) uint32), WORD_ROW texels a row, zero past the end."""
+    n, components = words.shape
+    padded = np.zeros((word_rows(n) * WORD_ROW, components), words.dtype)
+    padded[:n] = words
+    return ctx.texture((WORD_ROW, word_rows(n)), components, padded.tobytes(),
+                       dtype="u4" if words.dtype == np.uint32 else "f4")
+
+
 def scene_gpu_bytes(scene: Scene) -> int:
-    """What ``Renderer.set_scene`` allocates for ``scene``: the segments, the per-guide colours (a groom
-    file's, where it has them), the hierarchy's boxes and order, the shared proxy rectangle."""
-    return (max(scene.segments.nbytes, 80) + scene.guide_color_bytes + bvh_nbytes(scene.n_segments)
-            + _QUAD.nbytes)
+    """What ``Renderer.set_scene`` allocates for ``scene``: the segments (a vertex buffer for the proxies and
+    an image for the walk), the per-guide colours (a groom file's, where it has them), the hierarchy's nodes
+    and order (images), the shared proxy rectangle."""
+    n = max(scene.n_segments, 1)
+    nodes, order = bvh_words(scene.n_segments)
+    return (max(scene.segments.nbytes, 80) + scene.guide_color_bytes + _QUAD.nbytes
+            + 16 * WORD_ROW * (word_rows(5 * n) + word_rows(nodes)) + 4 * WORD_ROW * word_rows(order))
 
 
 def proxy_layers(scene: Scene, cam: Camera, size: tuple[int, int], grid: int = 64) -> float:

@@ -1,4 +1,6 @@
 // bvh.glsl: the containers a ray enters, nearest first, from the hierarchy of app/render/bvh.py.
+//   vec4      node_word(int k)                                           word k of the hierarchy (two a node)
+//   uint      leaf_segment(int leaf)                                     scene index of a leaf's segment
 //   Segment   fetch_segment(uint index)                                  scene segment, camera-relative
 //   void      walk_to_leaf(inout uint node, inout uint trail, vec3 rd, float tNear, float tCut)
 //   void      pop(inout uint node, inout uint trail)
@@ -12,6 +14,10 @@
 // (heap arithmetic), so a pixel's whole place in the walk is two integers: it can stop after any leaf
 // and go on in the next draw (walk.frag). A bound the ray enters after the nearest fiber found so far
 // holds no nearer one.
+// The scene's words (hierarchy nodes, leaf order, segments) are read from images, WORD_ROW texels a row
+// (renderer.py: WORD_ROW), not from storage buffers: llvmpipe reads a storage buffer at a per-lane index one
+// lane and one component at a time (a loop that stalls on every component, ~300 ns a vec4 per 8-lane batch),
+// an image with one gather per batch (~60 ns); harolongo's frame took 2.7x less CPU (docs/performance.md).
 // Twin: app/render/bvh.py (segment_cylinders, segment_boxes, the layout); tests/render/test_bvh.py walks
 // the same tree in numpy.
 
@@ -25,9 +31,10 @@
 #define WALK_CAP 4096       // walk steps per call; one that runs out is reported (walk.frag, cost output)
 #endif
 
-layout(std430, binding = 0) readonly buffer BvhNodes { vec4 bvhNodes[]; };       // two per node
-layout(std430, binding = 1) readonly buffer BvhOrder { uint bvhOrder[]; };       // scene index per leaf
-layout(std430, binding = 2) readonly buffer SegmentData { vec4 segmentData[]; }; // five per scene segment
+#define WORD_ROW_SHIFT 12        // renderer.py: WORD_ROW = 1 << WORD_ROW_SHIFT texels a row
+layout(binding = 7, rgba32f) uniform readonly image2D uBvhNodes;        // two words per node
+layout(binding = 8, r32ui) uniform readonly uimage2D uBvhOrder;         // scene index per leaf
+layout(binding = 9, rgba32f) uniform readonly image2D uSegmentWords;    // five words per scene segment
 
 uniform int uBvhLeaves;         // leaves: a power of two
 uniform int uBvhDepth;          // log2(uBvhLeaves)
@@ -41,13 +48,29 @@ float gBoundGrow = 0.0;
 int gWalkSteps = 0;             // walk steps (two bound tests each), all walks of this invocation
 bool gWalkRanOut = false;
 
+ivec2 word_texel(int k) {
+    return ivec2(k & ((1 << WORD_ROW_SHIFT) - 1), k >> WORD_ROW_SHIFT);
+}
+
+vec4 node_word(int k) {
+    return imageLoad(uBvhNodes, word_texel(k));
+}
+
+uint leaf_segment(int leaf) {
+    return imageLoad(uBvhOrder, word_texel(leaf)).x;
+}
+
+vec4 segment_word(int k) {
+    return imageLoad(uSegmentWords, word_texel(k));
+}
+
 // The container segment as container.glsl builds it from the renderer's five vec4 per segment.
 Segment fetch_segment(uint index) {
     int k = int(index) * 5;
-    vec4 a = segmentData[k];
-    vec4 b = segmentData[k + 1];
+    vec4 a = segment_word(k);
+    vec4 b = segment_word(k + 1);
     return make_segment(vec4(a.xyz + uSceneFromCamera, a.w), vec4(b.xyz + uSceneFromCamera, b.w),
-                        segmentData[k + 2], segmentData[k + 3], segmentData[k + 4]);
+                        segment_word(k + 2), segment_word(k + 3), segment_word(k + 4));
 }
 
 // Key order for hits in different containers: distance, then scene index (the lower index wins a tie
@@ -65,8 +88,8 @@ vec2 tube_interval(vec3 o, vec3 d, float r) {
 // Entry and exit t of the ray 0 + t rd (camera at the origin) through inner node i's box; an empty
 // node gives entry > exit.
 vec2 box_interval(int i, vec3 invD) {
-    vec3 p = bvhNodes[2 * i].xyz + uSceneFromCamera;
-    vec3 q = bvhNodes[2 * i + 1].xyz + uSceneFromCamera;
+    vec3 p = node_word(2 * i).xyz + uSceneFromCamera;
+    vec3 q = node_word(2 * i + 1).xyz + uSceneFromCamera;
 #if defined(FILTER) && FILTER
     bool full = p.x <= q.x;
     vec3 g = vec3(gBoundGrow * length(max(abs(p), abs(q))));
@@ -83,8 +106,8 @@ vec2 box_interval(int i, vec3 invD) {
 // ... through leaf i's cylinder (bvh.py: base a.xyz, radius a.w, unit axis b.xyz, length b.w); the ray
 // seen along the axis is a 2D ray from -base, and its height along the axis stays within [0, length].
 vec2 cylinder_interval(int i, vec3 rd) {
-    vec4 a = bvhNodes[2 * i];
-    vec4 b = bvhNodes[2 * i + 1];
+    vec4 a = node_word(2 * i);
+    vec4 b = node_word(2 * i + 1);
     vec3 o = -(a.xyz + uSceneFromCamera);
     vec3 ez = b.xyz;
     float oz = dot(o, ez);

@@ -15,8 +15,8 @@ uniform float uGrowPx;          // the filtered mode's footprint half-width in p
 
 void main() {
     int node = uCoverageFirst + gl_InstanceID;
-    vec4 a = bvhNodes[2 * node];
-    vec4 b = bvhNodes[2 * node + 1];
+    vec4 a = node_word(2 * node);
+    vec4 b = node_word(2 * node + 1);
     vec3 lo = a.xyz + uSceneFromCamera;
     vec3 hi = b.xyz + uSceneFromCamera;
     // a leaf holds its container's bounding cylinder (base a.xyz, radius a.w, axis b.xyz, length b.w)

@@ -82,7 +82,7 @@ void main() {
     bool visit = node != WALK_DONE && node_level(node) == uBvhDepth;
     // no branch around the traversal: under a lane mask llvmpipe pays a blend for every assignment in it,
     // so a pixel with nothing to visit traverses segment 0 along an empty interval instead
-    uint id = bvhOrder[visit ? int(node) - (uBvhLeaves - 1) : 0];
+    uint id = leaf_segment(visit ? int(node) - (uBvhLeaves - 1) : 0);
     Segment seg = fetch_segment(id);
     UnitRay ur;
     bool inside = to_unit_space(seg, vec3(0.0), rd, uNear, ur) && visit;
