@@ -74,6 +74,7 @@ WALK_CAP = 4096                   # box tests per walk (glsl/geometry/bvh.glsl)
 # and one component at a time. Image units: NODE_UNIT, ORDER_UNIT, SEGMENT_UNIT (bvh.glsl's bindings).
 WORD_ROW = 4096
 NODE_UNIT, ORDER_UNIT, SEGMENT_UNIT = 7, 8, 9
+LIST_UNITS = (10, 11)             # walk.frag: the list of pixels a draw walks and the one it appends to
 VISIBILITY = ("auto", "proxies", "walk")
 # auto: the walk once the proxies would stack this many layers per covered pixel (proxy_layers). Measured
 # on llvmpipe, 640x360 exact, CPU time per frame, proxies vs walk: default preset (2.5 layers) 55 vs 90 ms,
@@ -187,6 +188,8 @@ class Renderer:
                 self._targets[key].depth_mask = False     # the resolve reads the mask, never writes it
             elif kind == "walk":
                 self._targets[key] = self.ctx.framebuffer([], depth)
+            elif kind == "lists":       # the pixels still walking, two lists (walk.frag: uListIn, uListOut)
+                self._targets[key] = self.ctx.framebuffer([tex(size, c, dtype=d) for c, d in LIST_IMAGES])
             elif kind == "proxy cost":
                 self._targets[key] = self.ctx.framebuffer([tex(size, 4, dtype="f4")])
             else:
@@ -239,9 +242,7 @@ class Renderer:
         self.program(p, mode, cost)
         if not cost:
             self.program(p, mode, False, stage="resolve")
-        for vert, frag in (("stages/coverage.vert", "stages/coverage.frag"),
-                           ("stages/fullscreen_depth.vert", "stages/mark_done.frag")):
-            self.programs.get(self.ctx, vert, frag, {})
+        self.programs.get(self.ctx, "stages/coverage.vert", "stages/coverage.frag", {})
 
     def program(self, p: Params, mode: str, cost: bool, stage: str = "walk") -> moderngl.Program:
         """The walk strategy's pass (``stage`` "walk") or the shading of its winners ("resolve")."""
@@ -363,8 +364,10 @@ class Renderer:
                     region: tuple[int, int, int, int]) -> tuple[int, int]:
         """Walk until every covered pixel has its nearest fiber: per fiber range of ``draw_ranges`` (one
         unless a layout could pass llvmpipe's loop budget), draws of the walk pass while it reports pixels
-        that need more containers than one draw walks. Returns (draws, pixels still unfinished after
-        MAX_DRAWS draws of a range: 0 unless something is broken)."""
+        that need more containers than one draw walks. The first draw of a range runs over the pixels the
+        coverage pass marked; each later one over the list of pixels the draw before left unfinished
+        (walk.frag: uListed), packed into a rectangle at the target's corner. Returns (draws, pixels still
+        unfinished after MAX_DRAWS draws of a range: 0 unless something is broken)."""
         ctx = self.ctx
         vao = self._vao(prog)
         traversals = traversals_per_fragment(p, mode)
@@ -373,7 +376,14 @@ class Renderer:
             prog["uRingOrder"].value = int(len(ranges) > 1 or needs_ring_order(p, self.scene, mode, traversals,
                                                                                walks=2))
         prog["uDepth"].value = WALK_DEPTH
-        mark = self.programs.get(ctx, "stages/fullscreen_depth.vert", "stages/mark_done.frag", {})
+        walk = self._target(size, "walk")
+        lists = self._target(size, "lists").color_attachments
+        # the pixels a range starts on: depth 0 where a coarse level of the hierarchy projects
+        walk.depth_mask = True
+        self._use(walk, region)
+        walk.clear(depth=1.0)
+        self._coverage(p, cam, size)
+        walk.depth_mask = False         # early tests: a write in the walk would land before the shader ran
         draws, left = 0, 0
         zero = bytes(4)
         for start, end in ranges:
@@ -382,29 +392,31 @@ class Renderer:
                     prog[name].value = (start, end)
             if "uCoverOn" in prog:          # the coverage scan tests whole rings: once, in the first range
                 prog["uCoverOn"].value = int(start == 0)
-            # every covered pixel walks each range: the mask is drawn anew (done pixels wrote WALK_DEPTH)
-            self._target(size, "walk").depth_mask = True
-            self._use(self._target(size, "walk"), region)
-            self._target(size, "walk").clear(depth=1.0)
-            self._coverage(p, cam, size)
-            ctx.depth_func = ">"
-            walk = self._target(size, "walk")
             for k in range(MAX_DRAWS):
+                # draw k walks the list draw k - 1 appended to and appends to the other one
+                lists[k % 2].bind_to_image(LIST_UNITS[0], read=True, write=False)
+                lists[(k + 1) % 2].bind_to_image(LIST_UNITS[1], read=False, write=True)
                 prog["uRestart"].value = int(k == 0)
+                prog["uListed"].value = int(k > 0)
                 self._progress.write(zero)
-                walk.depth_mask = False         # early tests: a write here would land before the shader ran
-                self._use(walk, region)
+                if k == 0:
+                    ctx.enable(moderngl.DEPTH_TEST)
+                    ctx.depth_func = ">"
+                    self._use(walk, region)
+                else:
+                    width, height, blocks = list_rectangle(left, size)
+                    prog["uListCount"].value = left
+                    prog["uListWidth"].value = width
+                    prog["uListBlocks"].value = blocks
+                    ctx.disable(moderngl.DEPTH_TEST)
+                    self._use(walk, (0, 0, width, height))
                 vao.render(moderngl.TRIANGLES, vertices=3)
                 draws += 1
                 ctx.memory_barrier()            # the image stores land before the next draw reads them
                 left = int(np.frombuffer(self._progress.read(), np.uint32)[0])
                 if left == 0:
                     break
-                walk.depth_mask = True
-                self._use(walk, region)
-                mark["uDepth"].value = WALK_DEPTH
-                self._vao(mark).render(moderngl.TRIANGLES, vertices=3)
-                ctx.memory_barrier()
+        ctx.enable(moderngl.DEPTH_TEST)         # the resolve keeps to the coverage pass's pixels
         return draws, left
 
     def _pass(self, p: Params, cam: Camera, size, offset, mode: str, cost: bool,
@@ -922,15 +934,31 @@ def proxy_layers(scene: Scene, cam: Camera, size: tuple[int, int], grid: int = 6
 # The walk's per-pixel images (Renderer._target "state"), (components, dtype): state, hit key, hit shape, the
 # two cost images, the filtered mode's colour and its transmittance (always there: one program set).
 STATE_IMAGES = ((4, "u4"), (4, "u4"), (4, "f4"), (4, "f4"), (4, "f4"), (4, "f4"), (1, "f4"))
+# The walk's two lists of pixels still walking (Renderer._target "lists"): one entry per pixel at most.
+LIST_IMAGES = ((1, "u4"), (1, "u4"))
 _DTYPE_BYTES = {"f1": 1, "u4": 4, "f4": 4}
 
 
 def frame_gpu_bytes(size: tuple[int, int]) -> int:
     """What the per-pixel targets of one frame allocate: the image (colour RGBA8 4 B, ids 16 B, geometry
-    16 B), the shared depth buffer (4 B) and the walk's state images (STATE_IMAGES: 100 B); a proxies-path
-    cost output adds 16 B per pixel while it is rendered."""
-    state = sum(c * _DTYPE_BYTES[d] for c, d in STATE_IMAGES)
+    16 B), the shared depth buffer (4 B), the walk's state images (STATE_IMAGES: 100 B) and its lists
+    (LIST_IMAGES: 8 B); a proxies-path cost output adds 16 B per pixel while it is rendered."""
+    state = sum(c * _DTYPE_BYTES[d] for c, d in (*STATE_IMAGES, *LIST_IMAGES))
     return int(size[0]) * int(size[1]) * (4 + 16 + 16 + 4 + state)
+
+
+def list_rectangle(count: int, size: tuple[int, int]) -> tuple[int, int, int]:
+    """(width, height, blocks) of the rectangle a listed walk draw covers for ``count`` entries in a target
+    of ``size`` (walk.frag: walked_pixel). blocks 1: entry 8b + i is pixel i of 4x2 block b, so the 8 lanes
+    of a SIMD batch take consecutive entries; where that does not fit (a target under 4 pixels wide, or
+    lists that need more rows than it has), rows of entries one after the other."""
+    w, h = size
+    width = w - w % 4
+    if width:
+        height = 2 * -(-count // (2 * width))
+        if height <= h:
+            return width, height, 1
+    return w, -(-count // w), 0
 
 
 def supersample_offsets(n: int) -> list[tuple[float, float]]:
