@@ -79,36 +79,38 @@ bool key_before(float ta, uint ia, float tb, uint ib) {
     return ta < tb || (ta == tb && ia < ib);
 }
 
-// [enter, exit] of o + t d inside the infinite tube of radius r about the axis, for o and d already
-// perpendicular to it: circle_interval's stable roots (intervals.glsl: radius_interval) in 3D.
-vec2 tube_interval(vec3 o, vec3 d, float r) {
-    return radius_interval(dot(d, d), dot(o, d), length(o), length(cross(o, d)), r);
-}
-
-// Entry and exit t of the ray 0 + t rd (camera at the origin) through inner node i's box; an empty
-// node gives entry > exit.
-vec2 box_interval(int i, vec3 invD) {
-    vec3 p = node_word(2 * i).xyz + uSceneFromCamera;
-    vec3 q = node_word(2 * i + 1).xyz + uSceneFromCamera;
+// Entry and exit t of the ray 0 + t rd (camera at the origin) through a box (an inner node's words: lo.xyz,
+// hi.xyz, scene-relative); an empty node gives entry > exit. shift: the scene's origin seen from the
+// camera (uSceneFromCamera) and shiftInvD = shift * invD, both passed in: read from the uniform inside
+// the walk's loop, llvmpipe gathered it lane by lane at every step.
+vec2 box_interval(vec4 lo, vec4 hi, vec3 invD, vec3 shift, vec3 shiftInvD) {
 #if defined(FILTER) && FILTER
+    vec3 p = lo.xyz + shift;
+    vec3 q = hi.xyz + shift;
     bool full = p.x <= q.x;
     vec3 g = vec3(gBoundGrow * length(max(abs(p), abs(q))));
     p = full ? p - g : p;
     q = full ? q + g : q;
-#endif
     vec3 ta = p * invD;
     vec3 tb = q * invD;
+#else
+    vec3 ta = lo.xyz * invD + shiftInvD;
+    vec3 tb = hi.xyz * invD + shiftInvD;
+#endif
     vec3 tn = min(ta, tb);
     vec3 tf = max(ta, tb);
-    return p.x <= q.x ? vec2(max(max(tn.x, tn.y), tn.z), min(min(tf.x, tf.y), tf.z)) : vec2(INF, -INF);
+    return lo.x <= hi.x ? vec2(max(max(tn.x, tn.y), tn.z), min(min(tf.x, tf.y), tf.z)) : vec2(INF, -INF);
 }
 
-// ... through leaf i's cylinder (bvh.py: base a.xyz, radius a.w, unit axis b.xyz, length b.w); the ray
-// seen along the axis is a 2D ray from -base, and its height along the axis stays within [0, length].
-vec2 cylinder_interval(int i, vec3 rd) {
-    vec4 a = node_word(2 * i);
-    vec4 b = node_word(2 * i + 1);
-    vec3 o = -(a.xyz + uSceneFromCamera);
+// ... through a leaf's cylinder (words: base a.xyz, radius a.w | unit axis b.xyz, length b.w; radius < 0:
+// an empty leaf). The ray seen across the axis, o' + t d', is inside radius r while
+// |d'|^2 t^2 + 2 (o'.d') t + |o'|^2 - r^2 <= 0; its discriminant is |d'|^2 r^2 - |o' x d'|^2 (no
+// cancellation of two squares) and the roots are the stable pair q / |d'|^2, c / q (intervals.glsl:
+// radius_interval, with one root and three divisions instead of four and four: the walk tests two
+// cylinders a step). The height along the axis stays within [0, length]. float32 rounding moves the
+// roots by far less than the radius's padding (bvh.py: segment_cylinders).
+vec2 cylinder_interval(vec4 a, vec4 b, vec3 rd, vec3 shift) {
+    vec3 o = -(a.xyz + shift);
     vec3 ez = b.xyz;
     float oz = dot(o, ez);
     float dz = dot(rd, ez);
@@ -117,13 +119,32 @@ vec2 cylinder_interval(int i, vec3 rd) {
 #else
     float r = a.w;
 #endif
-    vec2 c = tube_interval(o - oz * ez, rd - dz * ez, r);
-    vec2 z = slab(oz, dz, 0.0, b.w);
-    return a.w >= 0.0 ? vec2(max(c.x, z.x), min(c.y, z.y)) : vec2(INF, -INF);
+    vec3 op = o - oz * ez;
+    vec3 dp = rd - dz * ez;
+    float qa = dot(dp, dp);
+    float qb = dot(op, dp);
+    float qc = dot(op, op) - r * r;
+    vec3 x = cross(op, dp);
+    float disc = qa * (r * r) - dot(x, x);
+    float q = -(qb + (qb >= 0.0 ? 1.0 : -1.0) * sqrt(max(disc, 0.0)));
+    float ta = q / qa;
+    float tb = q != 0.0 ? qc / q : ta;
+    vec2 tube = qa == 0.0 ? (qc <= 0.0 ? vec2(-INF, INF) : vec2(INF, -INF))       // along the axis
+                          : (disc < 0.0 ? vec2(INF, -INF) : vec2(min(ta, tb), max(ta, tb)));
+    float iz = 1.0 / dz;
+    float z0 = -oz * iz;
+    float z1 = (b.w - oz) * iz;
+    vec2 height = dz == 0.0 ? (oz >= 0.0 && oz <= b.w ? vec2(-INF, INF) : vec2(INF, -INF))
+                            : vec2(min(z0, z1), max(z0, z1));
+    return a.w >= 0.0 ? vec2(max(tube.x, height.x), min(tube.y, height.y)) : vec2(INF, -INF);
 }
 
+// Node i's bound: its box, or for a leaf its cylinder.
 vec2 node_interval(int i, vec3 rd, vec3 invD, bool leaf) {
-    return leaf ? cylinder_interval(i, rd) : box_interval(i, invD);
+    vec4 a = node_word(2 * i);
+    vec4 b = node_word(2 * i + 1);
+    vec3 shift = uSceneFromCamera;
+    return leaf ? cylinder_interval(a, b, rd, shift) : box_interval(a, b, invD, shift, shift * invD);
 }
 
 int node_level(uint node) {
@@ -157,33 +178,37 @@ void walk_to_leaf(inout uint node, inout uint trail, vec3 rd, float tNear, float
         vec2 root = node_interval(0, rd, invD, uBvhDepth == 0);
         node = uSegmentCount > 0 && bound_entered(root, tNear, tCut) ? 0u : WALK_DONE;
     }
+    // the node's level is carried, not found again from its index at every step (findMSB is ~20
+    // instructions a lane here); node_level(WALK_DONE) is -1, which ends the loop as the node does
+    int level = node_level(node);
+    vec3 shift = uSceneFromCamera;
+    vec3 shiftInvD = shift * invD;
     int steps = 0;
-    for (; node != WALK_DONE && node_level(node) < uBvhDepth && steps < WALK_CAP; steps++) {
-        int level = node_level(node);
-        bool leaves = level + 1 == uBvhDepth;
+    for (; node != WALK_DONE && level < uBvhDepth && steps < WALK_CAP; steps++) {
         int left = 2 * int(node) + 1;
-        // neighbouring rays walk the same levels, so a batch mostly takes one side of this branch
-        vec2 l, r;
-        if (leaves) {
-            l = cylinder_interval(left, rd);
-            r = cylinder_interval(left + 1, rd);
-        } else {
-            l = box_interval(left, invD);
-            r = box_interval(left + 1, invD);
-        }
+        vec4 la = node_word(2 * left);
+        vec4 lb = node_word(2 * left + 1);
+        vec4 ra = node_word(2 * left + 2);
+        vec4 rb = node_word(2 * left + 3);
+        // both kinds of test run for every lane (llvmpipe); the words are read once
+        bool leaves = level + 1 == uBvhDepth;
+        vec2 l = leaves ? cylinder_interval(la, lb, rd, shift) : box_interval(la, lb, invD, shift, shiftInvD);
+        vec2 r = leaves ? cylinder_interval(ra, rb, rd, shift) : box_interval(ra, rb, invD, shift, shiftInvD);
         bool inL = bound_entered(l, tNear, tCut);
         bool inR = bound_entered(r, tNear, tCut);
         trail |= (inL && inR) ? (1u << uint(level)) : 0u;
-        uint near = uint((inL && (!inR || l.x <= r.x)) ? left : left + 1);
-        uint upNode = node;
-        uint upTrail = trail;
-        pop(upNode, upTrail);
         bool down = inL || inR;
-        node = down ? near : upNode;
-        trail = down ? trail : upTrail;
+        uint near = uint((inL && (!inR || l.x <= r.x)) ? left : left + 1);
+        // pop (below) with the level known: up to the far child of the deepest level still pending
+        int resume = findMSB(trail);
+        uint ancestor = ((node + 1u) >> uint(max(level - resume - 1, 0))) - 1u;
+        uint far = (ancestor & 1u) != 0u ? ancestor + 1u : ancestor - 1u;
+        node = down ? near : (resume >= 0 ? far : WALK_DONE);
+        trail = down ? trail : trail & ~(1u << uint(max(resume, 0)));
+        level = down ? level + 1 : resume + 1;
     }
     gWalkSteps += steps;
-    gWalkRanOut = gWalkRanOut || (node != WALK_DONE && node_level(node) < uBvhDepth);
+    gWalkRanOut = gWalkRanOut || (node != WALK_DONE && level < uBvhDepth);
 }
 
 #endif
