@@ -144,7 +144,7 @@ class Renderer:
         if scene.guide_colors is not None:      # the groom file's colours, two vec4 per guide
             self._buffers["guide_colors"] = self.ctx.buffer(scene.guide_color_rows().tobytes())
         # the walk's copies (the proxies draw the segments from the vertex buffer above)
-        self._words = {"nodes": word_image(self.ctx, self.bvh.nodes.reshape(-1, 4)),
+        self._words = {"nodes": word_image(self.ctx, self.bvh.records.reshape(-1, 4)),
                        "order": word_image(self.ctx, np.maximum(self.bvh.order, 0).astype(np.uint32)[:, None]),
                        "segments": word_image(self.ctx, np.asarray(data, np.float32).reshape(-1, 4))}
 
@@ -289,11 +289,18 @@ class Renderer:
                 prog[name].write(arr.tobytes())
         if "uClipFromCamera" in prog:
             prog["uClipFromCamera"].write(cam.clip_from_camera(w / h).T.astype(np.float32).copy().tobytes())
+        self._set_bvh_uniforms(prog)
+
+    def _set_bvh_uniforms(self, prog: moderngl.Program) -> None:
         bvh = self.bvh
         for name, value in (("uBvhLeaves", bvh.leaves), ("uBvhDepth", bvh.depth),
                             ("uSegmentCount", self.scene.n_segments)):
             if name in prog:
                 prog[name].value = value
+        for name, value in (("uDopBase", bvh.dop_base), ("uDopStep", bvh.dop_step)):
+            if name in prog:
+                # a stage that reads only the first directions (coverage.vert: the axes) keeps a shorter array
+                prog[name].write(np.ascontiguousarray(value[:prog[name].array_length], np.float32).tobytes())
 
     def _vao(self, prog: moderngl.Program) -> moderngl.VertexArray:
         """The fullscreen triangle (no vertex buffer: fullscreen.vert places it from gl_VertexID)."""
@@ -354,7 +361,7 @@ class Renderer:
         prog["uCoverageFirst"].value = (1 << level) - 1
         if "uGrowPx" in prog:
             prog["uGrowPx"].value = p["quality.filter_width"] if filtered(p, p["quality.mode"]) else 0.0
-        prog["uBvhLeaves"].value = self.bvh.leaves
+        self._set_bvh_uniforms(prog)
         prog["uViewport"].value = tuple(size)
         prog["uSceneFromCamera"].value = tuple(self.scene.origin - cam.position)
         prog["uClipFromCamera"].write(cam.clip_from_camera(size[0] / size[1]).T.astype(np.float32).copy().tobytes())
@@ -879,9 +886,9 @@ def scene_gpu_bytes(scene: Scene) -> int:
     an image for the walk), the per-guide colours (a groom file's, where it has them), the hierarchy's nodes
     and order (images), the shared proxy rectangle."""
     n = max(scene.n_segments, 1)
-    nodes, order = bvh_words(scene.n_segments)
+    records, order = bvh_words(scene.n_segments)
     return (max(scene.segments.nbytes, 80) + scene.guide_color_bytes + _QUAD.nbytes
-            + 16 * WORD_ROW * (word_rows(5 * n) + word_rows(nodes)) + 4 * WORD_ROW * word_rows(order))
+            + 16 * WORD_ROW * (word_rows(5 * n) + word_rows(records)) + 4 * WORD_ROW * word_rows(order))
 
 
 def proxy_layers(scene: Scene, cam: Camera, size: tuple[int, int], grid: int = 64) -> float:

@@ -1,25 +1,27 @@
 // bvh.glsl: the containers a ray enters, nearest first, from the hierarchy of app/render/bvh.py.
-//   vec4      node_word(int k)                                           word k of the hierarchy (two a node)
+//   uvec4     record_word(int k)                                         word k of the hierarchy (four a record)
 //   uint      leaf_segment(int leaf)                                     scene index of a leaf's segment
 //   Segment   fetch_segment(uint index)                                  scene segment, camera-relative
+//   void      node_box(int node, out vec3 lo, out vec3 hi)               a node's box, scene-relative (lo > hi: empty)
 //   void      walk_to_leaf(inout uint node, inout uint trail, vec3 rd, float tNear, float tCut)
 //   void      pop(inout uint node, inout uint trail)
 //   bool      key_before(float ta, uint ia, float tb, uint ib)
 // The tree is implicit and complete: node i has children 2i + 1 and 2i + 2, and leaf j (node
 // uBvhLeaves - 1 + j) holds sorted segment j, so every step of the walk is the same two bound tests and
 // the loop body stays short (llvmpipe runs every branch of a loop body for the whole SIMD batch, and
-// every buffer read is a gather over its lanes). Inner nodes hold boxes, leaves their container's
-// bounding cylinder. The walk keeps no stack: bit l of `trail` says the far child of the level-l node on
-// the current path is still to visit, and the node to resume at follows from the current node's index
-// (heap arithmetic), so a pixel's whole place in the walk is two integers: it can stop after any leaf
-// and go on in the next draw (walk.frag). A bound the ray enters after the nearest fiber found so far
-// holds no nearer one.
-// The scene's words (hierarchy nodes, leaf order, segments) are read from images, WORD_ROW texels a row
+// every image read is a gather over its lanes). Inner nodes are bounded by 14-DOPs (slabs along the
+// axes and the four body diagonals, DOP_DIR), leaves by their container's bounding cylinder; a step
+// reads its node's record (record node + 1: both children's bounds, four words) and tests both children.
+// The walk keeps no stack: bit l of `trail` says the far child of the level-l node on the current path
+// is still to visit, and the node to resume at follows from the current node's index (heap arithmetic),
+// so a pixel's whole place in the walk is two integers: it can stop after any leaf and go on in the next
+// draw (walk.frag). A bound the ray enters after the nearest fiber found so far holds no nearer one.
+// The scene's words (hierarchy records, leaf order, segments) are read from images, WORD_ROW texels a row
 // (renderer.py: WORD_ROW), not from storage buffers: llvmpipe reads a storage buffer at a per-lane index one
 // lane and one component at a time (a loop that stalls on every component, ~300 ns a vec4 per 8-lane batch),
 // an image with one gather per batch (~60 ns); harolongo's frame took 2.7x less CPU (docs/performance.md).
-// Twin: app/render/bvh.py (segment_cylinders, segment_boxes, the layout); tests/render/test_bvh.py walks
-// the same tree in numpy.
+// Twin: app/render/bvh.py (segment_cylinders, cylinder_dops, the records; decoded_bounds);
+// tests/render/test_bvh.py walks the same tree in numpy.
 
 #ifndef GEOMETRY_BVH_GLSL
 #define GEOMETRY_BVH_GLSL
@@ -32,7 +34,7 @@
 #endif
 
 #define WORD_ROW_SHIFT 12        // renderer.py: WORD_ROW = 1 << WORD_ROW_SHIFT texels a row
-layout(binding = 7, rgba32f) uniform readonly image2D uBvhNodes;        // two words per node
+layout(binding = 7, rgba32ui) uniform readonly uimage2D uBvhRecords;   // four words per record
 layout(binding = 8, r32ui) uniform readonly uimage2D uBvhOrder;         // scene index per leaf
 layout(binding = 9, rgba32f) uniform readonly image2D uSegmentWords;    // five words per scene segment
 
@@ -40,6 +42,14 @@ uniform int uBvhLeaves;         // leaves: a power of two
 uniform int uBvhDepth;          // log2(uBvhLeaves)
 uniform int uSegmentCount;
 uniform vec3 uSceneFromCamera;  // scene origin minus camera position: the tree and segments are scene-relative
+uniform float uDopBase[7];      // a DOP bound q (16 bits) along DOP_DIR[k] is uDopBase[k] + q * uDopStep[k]
+uniform float uDopStep[7];
+
+// bvh.py: DOP_DIRECTIONS (the same float32 values: the slabs were computed along these)
+const float DOP_D = 0.57735026918962576;
+const vec3 DOP_DIR[7] = vec3[7](vec3(1.0, 0.0, 0.0), vec3(0.0, 1.0, 0.0), vec3(0.0, 0.0, 1.0),
+                                vec3(DOP_D, DOP_D, DOP_D), vec3(DOP_D, -DOP_D, DOP_D),
+                                vec3(DOP_D, DOP_D, -DOP_D), vec3(DOP_D, -DOP_D, -DOP_D));
 
 const uint WALK_DONE = 0xFFFFFFFFu;
 // The filtered mode's footprint half-width per unit distance (walk.frag sets it): every bound grows by the
@@ -52,8 +62,8 @@ ivec2 word_texel(int k) {
     return ivec2(k & ((1 << WORD_ROW_SHIFT) - 1), k >> WORD_ROW_SHIFT);
 }
 
-vec4 node_word(int k) {
-    return imageLoad(uBvhNodes, word_texel(k));
+uvec4 record_word(int k) {
+    return imageLoad(uBvhRecords, word_texel(k));
 }
 
 uint leaf_segment(int leaf) {
@@ -79,27 +89,70 @@ bool key_before(float ta, uint ia, float tb, uint ib) {
     return ta < tb || (ta == tb && ia < ib);
 }
 
-// Entry and exit t of the ray 0 + t rd (camera at the origin) through a box (an inner node's words: lo.xyz,
-// hi.xyz, scene-relative); an empty node gives entry > exit. shift: the scene's origin seen from the
-// camera (uSceneFromCamera) and shiftInvD = shift * invD, both passed in: read from the uniform inside
-// the walk's loop, llvmpipe gathered it lane by lane at every step.
-vec2 box_interval(vec4 lo, vec4 hi, vec3 invD, vec3 shift, vec3 shiftInvD) {
+// A ray against the DOP grids: along direction k, a bound q lies at t = q * a[k] + b[k] (its position
+// and reciprocal direction along each of the seven directions, taken once per walk: inside the loop a
+// slab then costs what a box axis costs). inv: the reciprocal directions (the filtered mode's growth).
+struct DopRay {
+    vec4 a0;
+    vec3 a1;
+    vec4 b0;
+    vec3 b1;
+    vec4 i0;
+    vec3 i1;
+};
+
+float dop_reciprocal(float d) {
+    // a zero component gives a large finite reciprocal: the slab then compares as a slab, with no NaN
+    return 1.0 / (d < 0.0 ? min(d, -EPS_DIVISOR) : max(d, EPS_DIVISOR));
+}
+
+DopRay dop_ray(vec3 rd, vec3 shift) {
+    DopRay r;
+    float a[7];
+    float b[7];
+    float inv[7];
+    for (int k = 0; k < 7; k++) {
+        inv[k] = dop_reciprocal(dot(rd, DOP_DIR[k]));
+        // the camera sits at -shift in the tree's (scene-relative) frame
+        a[k] = uDopStep[k] * inv[k];
+        b[k] = (uDopBase[k] + dot(shift, DOP_DIR[k])) * inv[k];
+    }
+    r.a0 = vec4(a[0], a[1], a[2], a[3]);
+    r.a1 = vec3(a[4], a[5], a[6]);
+    r.b0 = vec4(b[0], b[1], b[2], b[3]);
+    r.b1 = vec3(b[4], b[5], b[6]);
+    r.i0 = vec4(inv[0], inv[1], inv[2], inv[3]);
+    r.i1 = vec3(inv[4], inv[5], inv[6]);
+    return r;
+}
+
+// Entry and exit t of the ray through a DOP (u0: directions 0-3, u1: 4-6, each q_lo | q_hi << 16); an
+// empty node (q_lo > q_hi) gives entry > exit.
+vec2 dop_interval(uvec4 u0, uvec3 u1, DopRay r) {
+    vec4 ta0 = vec4(u0 & 0xFFFFu) * r.a0 + r.b0;
+    vec4 tb0 = vec4(u0 >> 16u) * r.a0 + r.b0;
+    vec3 ta1 = vec3(u1 & 0xFFFFu) * r.a1 + r.b1;
+    vec3 tb1 = vec3(u1 >> 16u) * r.a1 + r.b1;
 #if defined(FILTER) && FILTER
-    vec3 p = lo.xyz + shift;
-    vec3 q = hi.xyz + shift;
-    bool full = p.x <= q.x;
-    vec3 g = vec3(gBoundGrow * length(max(abs(p), abs(q))));
-    p = full ? p - g : p;
-    q = full ? q + g : q;
-    vec3 ta = p * invD;
-    vec3 tb = q * invD;
-#else
-    vec3 ta = lo.xyz * invD + shiftInvD;
-    vec3 tb = hi.xyz * invD + shiftInvD;
+    // every slab grows by the footprint at the node's farthest point from the camera, bounded by its box
+    // (directions 0-2 are the axes)
+    vec3 p = (vec3(u0.xyz & 0xFFFFu) * vec3(uDopStep[0], uDopStep[1], uDopStep[2])
+              + vec3(uDopBase[0], uDopBase[1], uDopBase[2])) + uSceneFromCamera;
+    vec3 q = (vec3(u0.xyz >> 16u) * vec3(uDopStep[0], uDopStep[1], uDopStep[2])
+              + vec3(uDopBase[0], uDopBase[1], uDopBase[2])) + uSceneFromCamera;
+    float g = gBoundGrow * length(max(abs(p), abs(q)));
+    ta0 -= g * r.i0;
+    tb0 += g * r.i0;
+    ta1 -= g * r.i1;
+    tb1 += g * r.i1;
 #endif
-    vec3 tn = min(ta, tb);
-    vec3 tf = max(ta, tb);
-    return lo.x <= hi.x ? vec2(max(max(tn.x, tn.y), tn.z), min(min(tf.x, tf.y), tf.z)) : vec2(INF, -INF);
+    vec4 n0 = min(ta0, tb0);
+    vec4 f0 = max(ta0, tb0);
+    vec3 n1 = min(ta1, tb1);
+    vec3 f1 = max(ta1, tb1);
+    float tn = max(max(max(n0.x, n0.y), max(n0.z, n0.w)), max(max(n1.x, n1.y), n1.z));
+    float tf = min(min(min(f0.x, f0.y), min(f0.z, f0.w)), min(min(f1.x, f1.y), f1.z));
+    return (u0.x & 0xFFFFu) <= (u0.x >> 16u) ? vec2(tn, tf) : vec2(INF, -INF);
 }
 
 // ... through a leaf's cylinder (words: base a.xyz, radius a.w | unit axis b.xyz, length b.w; radius < 0:
@@ -139,12 +192,40 @@ vec2 cylinder_interval(vec4 a, vec4 b, vec3 rd, vec3 shift) {
     return a.w >= 0.0 ? vec2(max(tube.x, height.x), min(tube.y, height.y)) : vec2(INF, -INF);
 }
 
-// Node i's bound: its box, or for a leaf its cylinder.
-vec2 node_interval(int i, vec3 rd, vec3 invD, bool leaf) {
-    vec4 a = node_word(2 * i);
-    vec4 b = node_word(2 * i + 1);
-    vec3 shift = uSceneFromCamera;
-    return leaf ? cylinder_interval(a, b, rd, shift) : box_interval(a, b, invD, shift, shift * invD);
+// The root's bound (record 0: a DOP, or for a tree of one leaf its cylinder).
+vec2 root_interval(vec3 rd, vec3 shift, DopRay ray) {
+    uvec4 w0 = record_word(0);
+    uvec4 w1 = record_word(1);          // record 0, words 0 and 1
+    return uBvhDepth == 0 ? cylinder_interval(uintBitsToFloat(w0), uintBitsToFloat(w1), rd, shift)
+                          : dop_interval(w0, w1.xyz, ray);
+}
+
+// Node `node`'s box from its parent's record (directions 0-2 of its DOP are the axes; a leaf: the box of
+// its cylinder), scene-relative; an empty node gives lo > hi.
+void node_box(int node, out vec3 lo, out vec3 hi) {
+    int rec = (node + 1) >> 1;                  // the parent's record, record 0 for the root
+    bool right = node > 0 && (node & 1) == 0;
+    uvec4 w0 = record_word(4 * rec);
+    uvec4 w1 = record_word(4 * rec + 1);
+    uvec4 w2 = record_word(4 * rec + 2);
+    uvec4 w3 = record_word(4 * rec + 3);
+    uvec3 axes = right ? uvec3(w1.w, w2.xy) : w0.xyz;
+    vec3 step = vec3(uDopStep[0], uDopStep[1], uDopStep[2]);
+    vec3 base = vec3(uDopBase[0], uDopBase[1], uDopBase[2]);
+    lo = vec3(axes & 0xFFFFu) * step + base;
+    hi = vec3(axes >> 16u) * step + base;
+    bool empty = (axes.x & 0xFFFFu) > (axes.x >> 16u);
+    // a leaf: the box around its cylinder (a disc of radius r about ez reaches r sqrt(1 - ez_k^2) along k)
+    vec4 a = uintBitsToFloat(right ? w2 : w0);
+    vec4 b = uintBitsToFloat(right ? w3 : w1);
+    vec3 tip = a.xyz + b.xyz * b.w;
+    vec3 reach = a.w * sqrt(max(vec3(0.0), 1.0 - b.xyz * b.xyz));
+    bool leaf = node >= uBvhLeaves - 1;
+    lo = leaf ? min(a.xyz, tip) - reach : lo;
+    hi = leaf ? max(a.xyz, tip) + reach : hi;
+    empty = leaf ? a.w < 0.0 : empty;
+    lo = empty ? vec3(1.0) : lo;
+    hi = empty ? vec3(-1.0) : hi;
 }
 
 int node_level(uint node) {
@@ -171,29 +252,29 @@ void pop(inout uint node, inout uint trail) {
 // moves past it with pop once it is traversed). Whatever the walk skips is entered after tCut, and tCut
 // only falls as nearer fibers are found, so nothing skipped can hold the nearest fiber.
 void walk_to_leaf(inout uint node, inout uint trail, vec3 rd, float tNear, float tCut) {
-    // a zero component gives a large finite reciprocal: boxes then compare as slabs, with no NaN
-    vec3 invD = 1.0 / mix(max(abs(rd), vec3(EPS_DIVISOR)), min(-abs(rd), vec3(-EPS_DIVISOR)), lessThan(rd, vec3(0.0)));
+    vec3 shift = uSceneFromCamera;      // read once: inside the loop llvmpipe gathered it lane by lane
+    DopRay ray = dop_ray(rd, shift);
     if (node == 0u && trail == 0u) {
-        // the start: the root itself (a tree of one leaf is one cylinder)
-        vec2 root = node_interval(0, rd, invD, uBvhDepth == 0);
-        node = uSegmentCount > 0 && bound_entered(root, tNear, tCut) ? 0u : WALK_DONE;
+        // the start: the root itself
+        node = uSegmentCount > 0 && bound_entered(root_interval(rd, shift, ray), tNear, tCut) ? 0u : WALK_DONE;
     }
     // the node's level is carried, not found again from its index at every step (findMSB is ~20
     // instructions a lane here); node_level(WALK_DONE) is -1, which ends the loop as the node does
     int level = node_level(node);
-    vec3 shift = uSceneFromCamera;
-    vec3 shiftInvD = shift * invD;
     int steps = 0;
     for (; node != WALK_DONE && level < uBvhDepth && steps < WALK_CAP; steps++) {
         int left = 2 * int(node) + 1;
-        vec4 la = node_word(2 * left);
-        vec4 lb = node_word(2 * left + 1);
-        vec4 ra = node_word(2 * left + 2);
-        vec4 rb = node_word(2 * left + 3);
+        int k = 4 * (int(node) + 1);            // the node's record: both children's bounds
+        uvec4 w0 = record_word(k);
+        uvec4 w1 = record_word(k + 1);
+        uvec4 w2 = record_word(k + 2);
+        uvec4 w3 = record_word(k + 3);
         // both kinds of test run for every lane (llvmpipe); the words are read once
         bool leaves = level + 1 == uBvhDepth;
-        vec2 l = leaves ? cylinder_interval(la, lb, rd, shift) : box_interval(la, lb, invD, shift, shiftInvD);
-        vec2 r = leaves ? cylinder_interval(ra, rb, rd, shift) : box_interval(ra, rb, invD, shift, shiftInvD);
+        vec2 l = leaves ? cylinder_interval(uintBitsToFloat(w0), uintBitsToFloat(w1), rd, shift)
+                        : dop_interval(w0, w1.xyz, ray);
+        vec2 r = leaves ? cylinder_interval(uintBitsToFloat(w2), uintBitsToFloat(w3), rd, shift)
+                        : dop_interval(uvec4(w1.w, w2.xyz), uvec3(w2.w, w3.xy), ray);
         bool inL = bound_entered(l, tNear, tCut);
         bool inR = bound_entered(r, tNear, tCut);
         trail |= (inL && inR) ? (1u << uint(level)) : 0u;
