@@ -297,10 +297,10 @@ class Renderer:
                             ("uSegmentCount", self.scene.n_segments)):
             if name in prog:
                 prog[name].value = value
-        for name, value in (("uDopBase", bvh.dop_base), ("uDopStep", bvh.dop_step)):
+        for name, value in (("uDopBaseA", bvh.dop_base[:4]), ("uDopBaseB", bvh.dop_base[4:]),
+                            ("uDopStepA", bvh.dop_step[:4]), ("uDopStepB", bvh.dop_step[4:])):
             if name in prog:
-                # a stage that reads only the first directions (coverage.vert: the axes) keeps a shorter array
-                prog[name].write(np.ascontiguousarray(value[:prog[name].array_length], np.float32).tobytes())
+                prog[name].value = tuple(float(v) for v in value)
 
     def _vao(self, prog: moderngl.Program) -> moderngl.VertexArray:
         """The fullscreen triangle (no vertex buffer: fullscreen.vert places it from gl_VertexID)."""

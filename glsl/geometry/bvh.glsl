@@ -10,7 +10,7 @@
 // uBvhLeaves - 1 + j) holds sorted segment j, so every step of the walk is the same two bound tests and
 // the loop body stays short (llvmpipe runs every branch of a loop body for the whole SIMD batch, and
 // every image read is a gather over its lanes). Inner nodes are bounded by 14-DOPs (slabs along the
-// axes and the four body diagonals, DOP_DIR), leaves by their container's bounding cylinder; a step
+// axes and the four body diagonals, dop_along_a/b), leaves by their container's bounding cylinder; a step
 // reads its node's record (record node + 1: both children's bounds, four words) and tests both children.
 // The walk keeps no stack: bit l of `trail` says the far child of the level-l node on the current path
 // is still to visit, and the node to resume at follows from the current node's index (heap arithmetic),
@@ -42,14 +42,21 @@ uniform int uBvhLeaves;         // leaves: a power of two
 uniform int uBvhDepth;          // log2(uBvhLeaves)
 uniform int uSegmentCount;
 uniform vec3 uSceneFromCamera;  // scene origin minus camera position: the tree and segments are scene-relative
-uniform float uDopBase[7];      // a DOP bound q (16 bits) along DOP_DIR[k] is uDopBase[k] + q * uDopStep[k]
-uniform float uDopStep[7];
+// A DOP bound q (16 bits) along direction k is base[k] + q * step[k]; directions 0-3 in the A vectors,
+// 4-6 in the B ones (vectors, not arrays: llvmpipe gathered indexed uniforms lane by lane in the loop).
+uniform vec4 uDopBaseA;
+uniform vec3 uDopBaseB;
+uniform vec4 uDopStepA;
+uniform vec3 uDopStepB;
 
-// bvh.py: DOP_DIRECTIONS (the same float32 values: the slabs were computed along these)
+// bvh.py: DOP_DIRECTIONS, the axes and the four body diagonals (1, +-1, +-1) / sqrt(3), in that order
 const float DOP_D = 0.57735026918962576;
-const vec3 DOP_DIR[7] = vec3[7](vec3(1.0, 0.0, 0.0), vec3(0.0, 1.0, 0.0), vec3(0.0, 0.0, 1.0),
-                                vec3(DOP_D, DOP_D, DOP_D), vec3(DOP_D, -DOP_D, DOP_D),
-                                vec3(DOP_D, DOP_D, -DOP_D), vec3(DOP_D, -DOP_D, -DOP_D));
+vec4 dop_along_a(vec3 v) {
+    return vec4(v, DOP_D * (v.x + v.y + v.z));
+}
+vec3 dop_along_b(vec3 v) {
+    return DOP_D * vec3(v.x - v.y + v.z, v.x + v.y - v.z, v.x - v.y - v.z);
+}
 
 const uint WALK_DONE = 0xFFFFFFFFu;
 // The filtered mode's footprint half-width per unit distance (walk.frag sets it): every bound grows by the
@@ -99,60 +106,58 @@ struct DopRay {
     vec3 b1;
     vec4 i0;
     vec3 i1;
+    uvec4 s0;       // 16 where the ray runs backwards along the direction (a < 0), else 0
+    uvec3 s1;
 };
 
-float dop_reciprocal(float d) {
+vec4 dop_reciprocal(vec4 d) {
     // a zero component gives a large finite reciprocal: the slab then compares as a slab, with no NaN
-    return 1.0 / (d < 0.0 ? min(d, -EPS_DIVISOR) : max(d, EPS_DIVISOR));
+    return 1.0 / mix(max(d, vec4(EPS_DIVISOR)), min(d, vec4(-EPS_DIVISOR)), lessThan(d, vec4(0.0)));
 }
 
 DopRay dop_ray(vec3 rd, vec3 shift) {
     DopRay r;
-    float a[7];
-    float b[7];
-    float inv[7];
-    for (int k = 0; k < 7; k++) {
-        inv[k] = dop_reciprocal(dot(rd, DOP_DIR[k]));
-        // the camera sits at -shift in the tree's (scene-relative) frame
-        a[k] = uDopStep[k] * inv[k];
-        b[k] = (uDopBase[k] + dot(shift, DOP_DIR[k])) * inv[k];
-    }
-    r.a0 = vec4(a[0], a[1], a[2], a[3]);
-    r.a1 = vec3(a[4], a[5], a[6]);
-    r.b0 = vec4(b[0], b[1], b[2], b[3]);
-    r.b1 = vec3(b[4], b[5], b[6]);
-    r.i0 = vec4(inv[0], inv[1], inv[2], inv[3]);
-    r.i1 = vec3(inv[4], inv[5], inv[6]);
+    vec4 inv0 = dop_reciprocal(dop_along_a(rd));
+    vec3 inv1 = dop_reciprocal(vec4(dop_along_b(rd), 1.0)).xyz;
+    // the camera sits at -shift in the tree's (scene-relative) frame
+    r.a0 = uDopStepA * inv0;
+    r.a1 = uDopStepB * inv1;
+    r.b0 = (uDopBaseA + dop_along_a(shift)) * inv0;
+    r.b1 = (uDopBaseB + dop_along_b(shift)) * inv1;
+    r.i0 = inv0;
+    r.i1 = inv1;
+    r.s0 = mix(uvec4(0u), uvec4(16u), lessThan(inv0, vec4(0.0)));
+    r.s1 = mix(uvec3(0u), uvec3(16u), lessThan(inv1, vec3(0.0)));
     return r;
 }
 
 // Entry and exit t of the ray through a DOP (u0: directions 0-3, u1: 4-6, each q_lo | q_hi << 16); an
-// empty node (q_lo > q_hi) gives entry > exit.
+// empty node (q_lo > q_hi) gives entry > exit. Along a direction the ray runs backwards on (a < 0), the
+// near bound is q_hi: the two halves of the word are swapped (r.s: 16 there, else 0) instead of sorting
+// the two t by min and max, which llvmpipe makes NaN-safe at three instructions each.
 vec2 dop_interval(uvec4 u0, uvec3 u1, DopRay r) {
-    vec4 ta0 = vec4(u0 & 0xFFFFu) * r.a0 + r.b0;
-    vec4 tb0 = vec4(u0 >> 16u) * r.a0 + r.b0;
-    vec3 ta1 = vec3(u1 & 0xFFFFu) * r.a1 + r.b1;
-    vec3 tb1 = vec3(u1 >> 16u) * r.a1 + r.b1;
+    bool empty = (u0.x & 0xFFFFu) > (u0.x >> 16u);
+    u0 = (u0 >> r.s0) | (u0 << ((32u - r.s0) & 31u));
+    u1 = (u1 >> r.s1) | (u1 << ((32u - r.s1) & 31u));
+    vec4 n0 = vec4(u0 & 0xFFFFu) * r.a0 + r.b0;
+    vec4 f0 = vec4(u0 >> 16u) * r.a0 + r.b0;
+    vec3 n1 = vec3(u1 & 0xFFFFu) * r.a1 + r.b1;
+    vec3 f1 = vec3(u1 >> 16u) * r.a1 + r.b1;
 #if defined(FILTER) && FILTER
     // every slab grows by the footprint at the node's farthest point from the camera, bounded by its box
     // (directions 0-2 are the axes)
-    vec3 p = (vec3(u0.xyz & 0xFFFFu) * vec3(uDopStep[0], uDopStep[1], uDopStep[2])
-              + vec3(uDopBase[0], uDopBase[1], uDopBase[2])) + uSceneFromCamera;
-    vec3 q = (vec3(u0.xyz >> 16u) * vec3(uDopStep[0], uDopStep[1], uDopStep[2])
-              + vec3(uDopBase[0], uDopBase[1], uDopBase[2])) + uSceneFromCamera;
+    // (the rotation only swaps the halves: the box is the same either way)
+    vec3 p = vec3(u0.xyz & 0xFFFFu) * uDopStepA.xyz + uDopBaseA.xyz + uSceneFromCamera;
+    vec3 q = vec3(u0.xyz >> 16u) * uDopStepA.xyz + uDopBaseA.xyz + uSceneFromCamera;
     float g = gBoundGrow * length(max(abs(p), abs(q)));
-    ta0 -= g * r.i0;
-    tb0 += g * r.i0;
-    ta1 -= g * r.i1;
-    tb1 += g * r.i1;
+    n0 -= g * abs(r.i0);
+    f0 += g * abs(r.i0);
+    n1 -= g * abs(r.i1);
+    f1 += g * abs(r.i1);
 #endif
-    vec4 n0 = min(ta0, tb0);
-    vec4 f0 = max(ta0, tb0);
-    vec3 n1 = min(ta1, tb1);
-    vec3 f1 = max(ta1, tb1);
     float tn = max(max(max(n0.x, n0.y), max(n0.z, n0.w)), max(max(n1.x, n1.y), n1.z));
     float tf = min(min(min(f0.x, f0.y), min(f0.z, f0.w)), min(min(f1.x, f1.y), f1.z));
-    return (u0.x & 0xFFFFu) <= (u0.x >> 16u) ? vec2(tn, tf) : vec2(INF, -INF);
+    return empty ? vec2(INF, -INF) : vec2(tn, tf);
 }
 
 // ... through a leaf's cylinder (words: base a.xyz, radius a.w | unit axis b.xyz, length b.w; radius < 0:
@@ -210,10 +215,8 @@ void node_box(int node, out vec3 lo, out vec3 hi) {
     uvec4 w2 = record_word(4 * rec + 2);
     uvec4 w3 = record_word(4 * rec + 3);
     uvec3 axes = right ? uvec3(w1.w, w2.xy) : w0.xyz;
-    vec3 step = vec3(uDopStep[0], uDopStep[1], uDopStep[2]);
-    vec3 base = vec3(uDopBase[0], uDopBase[1], uDopBase[2]);
-    lo = vec3(axes & 0xFFFFu) * step + base;
-    hi = vec3(axes >> 16u) * step + base;
+    lo = vec3(axes & 0xFFFFu) * uDopStepA.xyz + uDopBaseA.xyz;
+    hi = vec3(axes >> 16u) * uDopStepA.xyz + uDopBaseA.xyz;
     bool empty = (axes.x & 0xFFFFu) > (axes.x >> 16u);
     // a leaf: the box around its cylinder (a disc of radius r about ez reaches r sqrt(1 - ez_k^2) along k)
     vec4 a = uintBitsToFloat(right ? w2 : w0);
@@ -264,11 +267,12 @@ void walk_to_leaf(inout uint node, inout uint trail, vec3 rd, float tNear, float
     int steps = 0;
     for (; node != WALK_DONE && level < uBvhDepth && steps < WALK_CAP; steps++) {
         int left = 2 * int(node) + 1;
-        int k = 4 * (int(node) + 1);            // the node's record: both children's bounds
-        uvec4 w0 = record_word(k);
-        uvec4 w1 = record_word(k + 1);
-        uvec4 w2 = record_word(k + 2);
-        uvec4 w3 = record_word(k + 3);
+        // the node's record, both children's bounds: four texels of one row (a row holds whole records)
+        ivec2 at = word_texel(4 * (int(node) + 1));
+        uvec4 w0 = imageLoad(uBvhRecords, at);
+        uvec4 w1 = imageLoad(uBvhRecords, at + ivec2(1, 0));
+        uvec4 w2 = imageLoad(uBvhRecords, at + ivec2(2, 0));
+        uvec4 w3 = imageLoad(uBvhRecords, at + ivec2(3, 0));
         // both kinds of test run for every lane (llvmpipe); the words are read once
         bool leaves = level + 1 == uBvhDepth;
         vec2 l = leaves ? cylinder_interval(uintBitsToFloat(w0), uintBitsToFloat(w1), rd, shift)
