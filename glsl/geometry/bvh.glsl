@@ -3,7 +3,9 @@
 //   uint      leaf_segment(int leaf)                                     scene index of a leaf's segment
 //   Segment   fetch_segment(uint index)                                  scene segment, camera-relative
 //   void      node_box(int node, out vec3 lo, out vec3 hi)               a node's box, scene-relative (lo > hi: empty)
-//   void      walk_to_leaf(inout uint node, inout uint trail, vec3 rd, float tNear, float tCut)
+//   DopRay    dop_ray(vec3 rd, vec3 shift)                               the ray against the DOP grids
+//   void      walk_to_leaf(inout uint node, inout uint trail, vec3 rd, DopRay ray, vec3 shift, int depth,
+//                          float tNear, float tCut)
 //   void      pop(inout uint node, inout uint trail)
 //   bool      key_before(float ta, uint ia, float tb, uint ib)
 // The tree is implicit and complete: node i has children 2i + 1 and 2i + 2, and leaf j (node
@@ -254,9 +256,11 @@ void pop(inout uint node, inout uint trail) {
 // child first), or to the end. Standing on a leaf, the walk stays: that leaf is the next one (the caller
 // moves past it with pop once it is traversed). Whatever the walk skips is entered after tCut, and tCut
 // only falls as nearer fibers are found, so nothing skipped can hold the nearest fiber.
-void walk_to_leaf(inout uint node, inout uint trail, vec3 rd, float tNear, float tCut) {
-    vec3 shift = uSceneFromCamera;      // read once: inside the loop llvmpipe gathered it lane by lane
-    DopRay ray = dop_ray(rd, shift);
+// ray: dop_ray(rd, shift) (taken once per invocation by the caller); shift: uSceneFromCamera and depth:
+// uBvhDepth, passed in as values the compiler cannot trace back to the uniforms (walk.frag: opaque):
+// read inside the loop, llvmpipe gathered them lane by lane at every step.
+void walk_to_leaf(inout uint node, inout uint trail, vec3 rd, DopRay ray, vec3 shift, int depth, float tNear,
+                  float tCut) {
     if (node == 0u && trail == 0u) {
         // the start: the root itself
         node = uSegmentCount > 0 && bound_entered(root_interval(rd, shift, ray), tNear, tCut) ? 0u : WALK_DONE;
@@ -265,7 +269,7 @@ void walk_to_leaf(inout uint node, inout uint trail, vec3 rd, float tNear, float
     // instructions a lane here); node_level(WALK_DONE) is -1, which ends the loop as the node does
     int level = node_level(node);
     int steps = 0;
-    for (; node != WALK_DONE && level < uBvhDepth && steps < WALK_CAP; steps++) {
+    for (; node != WALK_DONE && level < depth && steps < WALK_CAP; steps++) {
         int left = 2 * int(node) + 1;
         // the node's record, both children's bounds: four texels of one row (a row holds whole records)
         ivec2 at = word_texel(4 * (int(node) + 1));
@@ -274,7 +278,7 @@ void walk_to_leaf(inout uint node, inout uint trail, vec3 rd, float tNear, float
         uvec4 w2 = imageLoad(uBvhRecords, at + ivec2(2, 0));
         uvec4 w3 = imageLoad(uBvhRecords, at + ivec2(3, 0));
         // both kinds of test run for every lane (llvmpipe); the words are read once
-        bool leaves = level + 1 == uBvhDepth;
+        bool leaves = level + 1 == depth;
         vec2 l = leaves ? cylinder_interval(uintBitsToFloat(w0), uintBitsToFloat(w1), rd, shift)
                         : dop_interval(w0, w1.xyz, ray);
         vec2 r = leaves ? cylinder_interval(uintBitsToFloat(w2), uintBitsToFloat(w3), rd, shift)
@@ -293,7 +297,7 @@ void walk_to_leaf(inout uint node, inout uint trail, vec3 rd, float tNear, float
         level = down ? level + 1 : resume + 1;
     }
     gWalkSteps += steps;
-    gWalkRanOut = gWalkRanOut || (node != WALK_DONE && level < uBvhDepth);
+    gWalkRanOut = gWalkRanOut || (node != WALK_DONE && level < depth);
 }
 
 #endif
