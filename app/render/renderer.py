@@ -84,7 +84,7 @@ WALK_LAYERS = 8.0
 LAYER_SAMPLE = 32_768             # segments proxy_layers counts (every n-th past that)
 MAX_DRAWS = 512                   # draws of one sample and fiber range before the renderer gives up
 COVERAGE_LEVEL = 6                # hierarchy level whose node boxes mark the pixels to walk (<= 64 boxes)
-WALK_DEPTH, RESOLVE_DEPTH = 0.5, 0.75     # window depths of the fullscreen passes (see _walk_draws)
+WALK_DEPTH, RESOLVE_DEPTH, EMPTY_DEPTH = 0.5, 0.75, 0.9     # window depths of the fullscreen passes (_pass)
 
 
 @dataclass
@@ -243,6 +243,8 @@ class Renderer:
         if not cost:
             self.program(p, mode, False, stage="resolve")
         self.programs.get(self.ctx, "stages/coverage.vert", "stages/coverage.frag", {})
+        self.programs.get(self.ctx, "stages/fullscreen_depth.vert", "stages/mark_shown.frag",
+                          {"FILTER": int(filtered(p, mode))})
 
     def program(self, p: Params, mode: str, cost: bool, stage: str = "walk") -> moderngl.Program:
         """The walk strategy's pass (``stage`` "walk") or the shading of its winners ("resolve")."""
@@ -448,12 +450,21 @@ class Renderer:
         draws, left = self._walk_draws(prog, p, cam, size, mode, region)
         ctx.memory_barrier()
         if not cost:
+            # pixels the walk ran on that show nothing get EMPTY_DEPTH, past the resolve's (mark_shown.frag)
+            mark = self.programs.get(ctx, "stages/fullscreen_depth.vert", "stages/mark_shown.frag",
+                                     {"FILTER": int(filtered(p, mode))})
+            mark["uDepth"].value = EMPTY_DEPTH
+            walk.depth_mask = True
+            self._use(walk, region)
+            ctx.depth_func = ">"
+            self._vao(mark).render(moderngl.TRIANGLES, vertices=3)
+            walk.depth_mask = False
             fbo = self._target(size, "image")
             self._use(self._targets[(size, "image colors")], region)
             clear_targets(self._targets[(size, "image colors")])
             used += [self._targets[(size, "image colors")], fbo]
             self._use(fbo, region)
-            ctx.depth_func = ">"                    # every pixel the walk reached: RESOLVE_DEPTH > its mark
+            ctx.depth_func = ">"                    # where a pixel shows something: RESOLVE_DEPTH > 0
             resolve = self.program(p, mode, cost=False, stage="resolve")
             self._set_uniforms(resolve, p, cam, size, offset)
             resolve["uDepth"].value = RESOLVE_DEPTH

@@ -52,3 +52,19 @@ def test_listed_draws_keep_the_walk_exact(renderer, size):
     if size == (96, 64):
         # the listed draws ran: pixels that needed 3 or more draws exist and finished
         assert exact.walk[..., 2].max() >= 3
+
+
+def test_the_resolve_still_shades_every_pixel_that_shows_something(renderer):
+    """mark_shown.frag keeps the resolve off the pixels the walk ran on that show nothing; in the filtered
+    mode a pixel whose footprint meets fibers shows their colour even without a hit at its centre, and
+    must not be skipped."""
+    p, scene, cam = setup(renderer, {**OVERLAPPING, "scene.count": 60, "fibers.fiber_radius": 0.002,
+                                     "quality.filter": "coverage"})
+    f = renderer.render(p, cam, (96, 64), outputs=("color", "ids"), mode="exact")
+    background = np.round(np.clip(np.asarray(p["look.background"]), 0, 1) ** (1 / 2.2) * 255)
+    colour_only = (f.coverage > 0.05) & ~f.hit
+    assert colour_only.sum() > 20, "the scene should have pixels covered without a fiber at their centre"
+    assert np.any(np.abs(f.color[colour_only].astype(float) - background) > 2, -1).mean() > 0.9
+    plain = renderer.render(p.replace(**{"quality.filter": "off"}), cam, (96, 64), outputs=("color", "ids"))
+    assert np.array_equal(plain.ids, f.ids)
+    assert (plain.coverage[~plain.hit] == 0).all() and (plain.coverage[plain.hit] > 0).all()
