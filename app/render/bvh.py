@@ -33,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import VfiberError
 from ..scene.containers import Scene, joint_slope
 
 EPS_BOUND = 1e-4           # glsl/common/epsilon.glsl: the relative slack of every bounding volume
@@ -45,6 +46,13 @@ DOP_DIRECTIONS = (_DIRECTIONS / np.linalg.norm(_DIRECTIONS, axis=1)[:, None]).as
 DOP_BITS = 16
 DOP_MAX = (1 << DOP_BITS) - 1
 RECORD_UINTS = 16          # four uvec4 a record (renderer.py: the hierarchy image, rgba32ui)
+# The walk finds the deepest pending level of its trail from a float's exponent, exact below bit 24
+# (bvh.glsl: trail_msb), so a tree has at most 2^24 leaves.
+MAX_LEAVES = 1 << 24
+
+
+class HierarchyTooLarge(VfiberError, MemoryError):
+    """More container segments than the walk's hierarchy holds."""
 
 
 @dataclass(frozen=True)
@@ -178,6 +186,9 @@ def build_bvh(scene: Scene) -> ContainerBvh:
     """The hierarchy over ``scene``'s segments: leaf order by median splits, then DOPs bottom-up, stored
     by parent (records)."""
     n = scene.n_segments
+    if n > MAX_LEAVES:
+        raise HierarchyTooLarge(f"{scene.name}: {n:,} container segments; the walk's hierarchy holds at most "
+                                f"{MAX_LEAVES:,} (group the strands with scene.groom_cluster, or sample fewer)")
     lo, hi = segment_boxes(scene.segments)
     leaves = 1
     while leaves < n:

@@ -32,7 +32,7 @@ from . import look
 from ..gl.shaders import ProgramCache
 from ..params import ParamError, Params
 from ..scene.containers import Scene, joint_slope
-from .bvh import ContainerBvh, build_bvh, bvh_words
+from .bvh import ContainerBvh, HierarchyTooLarge, build_bvh, bvh_words
 from .camera import Camera
 
 MAX_RINGS = fibers.MAX_RINGS
@@ -886,6 +886,10 @@ def word_rows(words: int) -> int:
 def word_image(ctx: moderngl.Context, words: np.ndarray) -> moderngl.Texture:
     """An image of ``words`` ((n, 4) float32 or (n, 1) uint32), WORD_ROW texels a row, zero past the end."""
     n, components = words.shape
+    if word_rows(n) > ctx.info["GL_MAX_TEXTURE_SIZE"]:
+        raise HierarchyTooLarge(f"{n:,} words of scene data need {word_rows(n):,} rows of {WORD_ROW} texels; this "
+                                f"OpenGL's images hold {ctx.info['GL_MAX_TEXTURE_SIZE']:,} (fewer container "
+                                "segments: scene.groom_cluster, or sample fewer strands)")
     padded = np.zeros((word_rows(n) * WORD_ROW, components), words.dtype)
     padded[:n] = words
     return ctx.texture((WORD_ROW, word_rows(n)), components, padded.tobytes(),

@@ -186,3 +186,39 @@ def test_walk_visits_exactly_the_containers_the_ray_enters(n, seed):
         assert set(visited) == expected
         hits += bool(expected)
     assert hits > 100, "the rays should meet containers"
+
+
+def test_a_scene_past_the_hierarchys_size_is_refused_with_a_message(monkeypatch):
+    import app.render.bvh as bvh_module
+
+    monkeypatch.setattr(bvh_module, "MAX_LEAVES", 8)
+    with pytest.raises(bvh_module.HierarchyTooLarge, match="at most 8"):
+        build_bvh(_scene(5, 1))                 # 15 segments
+
+
+def test_trail_msb_is_findmsb_below_bit_24(ctx):
+    """bvh.glsl's trail_msb takes the deepest pending level from a float's exponent; it must agree with
+    findMSB for every trail a tree of at most 2^24 leaves can hold (bits 0-23)."""
+    import moderngl
+
+    from app.gl.shaders import ProgramCache
+
+    rng = np.random.default_rng(3)
+    values = np.concatenate([[0], 1 << np.arange(24), (1 << np.arange(1, 25)) - 1,
+                             rng.integers(0, 1 << 24, 4000)]).astype(np.uint32)
+    n = len(values)
+    src = ProgramCache().expand("geometry/bvh.glsl")[0]
+    fs = ("#version 450 core\n" + src + "\nuniform int uCount;\nlayout(std430, binding = 12) buffer V { uint v[]; };\n"
+          "out vec4 o;\nvoid main() {\n  int i = int(gl_FragCoord.x);\n  uint t = v[min(i, uCount - 1)];\n"
+          "  o = vec4(float(trail_msb(t)), float(findMSB(t)), 0.0, 1.0);\n}\n")
+    vs = ("#version 450 core\nvoid main() { vec2 c = vec2(float((gl_VertexID << 1) & 2), float(gl_VertexID & 2));"
+          " gl_Position = vec4(c * 2.0 - 1.0, 0.0, 1.0); }\n")
+    prog = ctx.program(vertex_shader=vs, fragment_shader=fs)
+    buf = ctx.buffer(values.tobytes())
+    buf.bind_to_storage_buffer(12)
+    fbo = ctx.framebuffer([ctx.texture((n, 1), 4, dtype="f4")])
+    fbo.use()
+    prog["uCount"].value = n
+    ctx.vertex_array(prog, []).render(moderngl.TRIANGLES, vertices=3)
+    out = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32).reshape(n, 4)
+    assert np.array_equal(out[:, 0], out[:, 1])
