@@ -129,24 +129,26 @@ def _morton_codes(points: np.ndarray) -> np.ndarray:
 
 
 def median_order(centroids: np.ndarray, leaves: int) -> np.ndarray:
-    """Leaf order of a complete tree built top-down: every node sorts its segments along the axis where
-    their centroids spread most and gives each child half its leaf slots (slots past the last segment
-    stay empty, at the end of their node). One sort per level for all nodes of the level."""
+    """Leaf order of a complete tree built top-down: every node splits its segments at the median of their
+    centroids along the axis where they spread most and gives each child half its leaf slots (slots past
+    the last segment stay empty, at the end of their node). One partition per level for all nodes of the
+    level (argpartition: only the split matters, not the order inside each half)."""
     n = len(centroids)
     slots = np.full(leaves, -1, np.int64)
     slots[:n] = np.argsort(_morton_codes(centroids), kind="stable")     # a good start: fewer moves
     size = leaves
     while size > 1:
-        node = np.arange(leaves) // size
-        real = slots >= 0
-        c = centroids[np.maximum(slots, 0)]
+        k = leaves // size
+        real = (slots >= 0).reshape(k, size)
+        c = centroids[np.maximum(slots, 0)].reshape(k, size, 3)
         # each node's slots are contiguous: its centroid bounds are a reduction over a reshape
-        lo = np.where(real[:, None], c, np.inf).reshape(-1, size, 3).min(1)
-        hi = np.where(real[:, None], c, -np.inf).reshape(-1, size, 3).max(1)
+        lo = np.where(real[..., None], c, np.inf).min(1)
+        hi = np.where(real[..., None], c, -np.inf).max(1)
         spread = np.where(np.isfinite(hi - lo), hi - lo, -1.0)
         axis = np.argmax(spread, axis=1)
-        key = np.where(real, c[np.arange(leaves), axis[node]], np.inf)
-        slots = slots[np.lexsort((key, node))]
+        key = np.where(real, np.take_along_axis(c, axis[:, None, None], 2)[..., 0], np.inf)
+        part = np.argsort(key, axis=1, kind="stable") if size == 2 else np.argpartition(key, size // 2 - 1, axis=1)
+        slots = np.take_along_axis(slots.reshape(k, size), part, 1).reshape(-1)
         size //= 2
     return slots[:n]
 

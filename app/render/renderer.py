@@ -128,9 +128,11 @@ class Renderer:
         self._parking = ctx.framebuffer(ctx.renderbuffer((1, 1)))   # bound while targets are released
 
     # --- scene -------------------------------------------------------------------------------------
-    def set_scene(self, scene: Scene) -> None:
-        """Upload the containers and their hierarchy once. Nothing here depends on how many fibers are
-        drawn: five vec4 per segment, two per hierarchy node, one index per segment."""
+    def set_scene(self, scene: Scene, bvh: ContainerBvh | None = None) -> None:
+        """Upload the containers and their hierarchy once (``bvh``: build_bvh(scene) made elsewhere, e.g. in
+        the viewer's loading thread; None: built here). Nothing here depends on how many fibers are drawn:
+        five vec4 per segment for the proxies and five for the walk, four per hierarchy node, one index per
+        segment."""
         for buf in (*self._buffers.values(), *self._words.values()):
             buf.release()
         for vao in self._vaos.values():
@@ -138,7 +140,7 @@ class Renderer:
         self._vaos.clear()
         self._layers = None
         self.scene = scene
-        self.bvh = build_bvh(scene)
+        self.bvh = bvh if bvh is not None else build_bvh(scene)
         data = scene.segments if scene.n_segments else np.zeros((1, 20), np.float32)
         self._buffers = {"segments": self.ctx.buffer(np.ascontiguousarray(data, np.float32).tobytes())}
         if scene.guide_colors is not None:      # the groom file's colours, two vec4 per guide
@@ -883,17 +885,23 @@ def word_rows(words: int) -> int:
     return max(1, -(-int(words) // WORD_ROW))
 
 
+def word_image_size(words: int) -> tuple[int, int]:
+    """The image that holds ``words`` texels: rows of WORD_ROW, or one row just as long for fewer (word k
+    is at (k mod WORD_ROW, k / WORD_ROW) either way), so a small scene's images stay small."""
+    return min(WORD_ROW, max(int(words), 1)), word_rows(words)
+
+
 def word_image(ctx: moderngl.Context, words: np.ndarray) -> moderngl.Texture:
     """An image of ``words`` ((n, 4) float32 or (n, 1) uint32), WORD_ROW texels a row, zero past the end."""
     n, components = words.shape
-    if word_rows(n) > ctx.info["GL_MAX_TEXTURE_SIZE"]:
+    width, rows = word_image_size(n)
+    if rows > ctx.info["GL_MAX_TEXTURE_SIZE"]:
         raise HierarchyTooLarge(f"{n:,} words of scene data need {word_rows(n):,} rows of {WORD_ROW} texels; this "
                                 f"OpenGL's images hold {ctx.info['GL_MAX_TEXTURE_SIZE']:,} (fewer container "
                                 "segments: scene.groom_cluster, or sample fewer strands)")
-    padded = np.zeros((word_rows(n) * WORD_ROW, components), words.dtype)
+    padded = np.zeros((rows * width, components), words.dtype)
     padded[:n] = words
-    return ctx.texture((WORD_ROW, word_rows(n)), components, padded.tobytes(),
-                       dtype="u4" if words.dtype == np.uint32 else "f4")
+    return ctx.texture((width, rows), components, padded.tobytes(), dtype="u4" if words.dtype == np.uint32 else "f4")
 
 
 def scene_gpu_bytes(scene: Scene) -> int:
@@ -902,8 +910,9 @@ def scene_gpu_bytes(scene: Scene) -> int:
     and order (images), the shared proxy rectangle."""
     n = max(scene.n_segments, 1)
     records, order = bvh_words(scene.n_segments)
+    texels = [np.prod(word_image_size(words)) for words in (5 * n, records, order)]
     return (max(scene.segments.nbytes, 80) + scene.guide_color_bytes + _QUAD.nbytes
-            + 16 * WORD_ROW * (word_rows(5 * n) + word_rows(records)) + 4 * WORD_ROW * word_rows(order))
+            + int(16 * (texels[0] + texels[1]) + 4 * texels[2]))
 
 
 def proxy_layers(scene: Scene, cam: Camera, size: tuple[int, int], grid: int = 64) -> float:
