@@ -77,9 +77,13 @@ NODE_UNIT, ORDER_UNIT, SEGMENT_UNIT = 7, 8, 9
 LIST_UNITS = (10, 11)             # walk.frag: the list of pixels a draw walks and the one it appends to
 VISIBILITY = ("auto", "proxies", "walk")
 # auto: the walk once the proxies would stack this many layers per covered pixel (proxy_layers). Measured
-# on llvmpipe, 640x360 exact, CPU time per frame, proxies vs walk: default preset (2.5 layers) 55 vs 90 ms,
-# carpet (5.9) 272 vs 541, fur-ball (11.7) 426 vs 388, sintel (11.1) 470 vs 317, Ratboy (10.4) 465 vs 207,
-# harolongo (157) 5,800 vs 540 (docs/performance.md, "Two ways to find a pixel's containers").
+# on llvmpipe, 640x360 exact, CPU time per frame (one process, 7 alternated frames, median), walk over
+# proxies: straight (1.0 layers) 2.04, default preset (2.5) 1.18, curly-1 (3.8) 1.26, ellipsoid (4.3) 1.31,
+# carpet (5.9) 0.87, fur-ball (11.7) 0.48; sintel 0.35, harolongo 0.04 (docs/performance.md, "Two ways to
+# find a pixel's containers"). The walk wins from ~5 layers in exact mode now, but the threshold stays at 8:
+# the walk's fast mode takes the first container with a hit in walk order, the proxies' keeps the nearest
+# of every container's first hit, so walking carpet would move its fast-mode ids (20.4% of its hit pixels
+# differ from exact walked, 14.5% by proxies).
 WALK_LAYERS = 8.0
 LAYER_SAMPLE = 32_768             # segments proxy_layers counts (every n-th past that)
 MAX_DRAWS = 512                   # draws of one sample and fiber range before the renderer gives up
