@@ -134,11 +134,13 @@ DopRay dop_ray(vec3 rd, vec3 shift) {
 }
 
 // Entry and exit t of the ray through a DOP (u0: directions 0-3, u1: 4-6, each q_lo | q_hi << 16); an
-// empty node (q_lo > q_hi) gives entry > exit. Along a direction the ray runs backwards on (a < 0), the
+// empty node (bvh.py: q_lo = 65535, q_hi = 0) gives entry > exit. Along a direction the ray runs backwards on (a < 0), the
 // near bound is q_hi: the two halves of the word are swapped (r.s: 16 there, else 0) instead of sorting
 // the two t by min and max, which llvmpipe makes NaN-safe at three instructions each.
 vec2 dop_interval(uvec4 u0, uvec3 u1, DopRay r) {
+#if defined(FILTER) && FILTER
     bool empty = (u0.x & 0xFFFFu) > (u0.x >> 16u);
+#endif
     u0 = (u0 >> r.s0) | (u0 << ((32u - r.s0) & 31u));
     u1 = (u1 >> r.s1) | (u1 << ((32u - r.s1) & 31u));
     vec4 n0 = vec4(u0 & 0xFFFFu) * r.a0 + r.b0;
@@ -159,7 +161,13 @@ vec2 dop_interval(uvec4 u0, uvec3 u1, DopRay r) {
 #endif
     float tn = max(max(max(n0.x, n0.y), max(n0.z, n0.w)), max(max(n1.x, n1.y), n1.z));
     float tf = min(min(min(f0.x, f0.y), min(f0.z, f0.w)), min(min(f1.x, f1.y), f1.z));
+#if defined(FILTER) && FILTER
     return empty ? vec2(INF, -INF) : vec2(tn, tf);
+#else
+    // an empty node (q_lo = 65535 > q_hi = 0 along every direction) needs no test: along each direction its
+    // near bound lies past its far one, so tn > tf (the filtered mode's growth could close that gap)
+    return vec2(tn, tf);
+#endif
 }
 
 // ... through a leaf's cylinder (words: base a.xyz, radius a.w | unit axis b.xyz, length b.w; radius < 0:
