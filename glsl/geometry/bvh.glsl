@@ -207,14 +207,6 @@ vec2 cylinder_interval(vec4 a, vec4 b, vec3 rd, vec3 shift) {
     return a.w >= 0.0 ? vec2(max(tube.x, height.x), min(tube.y, height.y)) : vec2(INF, -INF);
 }
 
-// The root's bound (record 0: a DOP, or for a tree of one leaf its cylinder).
-vec2 root_interval(vec3 rd, vec3 shift, DopRay ray) {
-    uvec4 w0 = record_word(0);
-    uvec4 w1 = record_word(1);          // record 0, words 0 and 1
-    return uBvhDepth == 0 ? cylinder_interval(uintBitsToFloat(w0), uintBitsToFloat(w1), rd, shift)
-                          : dop_interval(w0, w1.xyz, ray);
-}
-
 // Node `node`'s box from its parent's record (directions 0-2 of its DOP are the axes; a leaf: the box of
 // its cylinder), scene-relative; an empty node gives lo > hi.
 void node_box(int node, out vec3 lo, out vec3 hi) {
@@ -275,10 +267,10 @@ void pop(inout uint node, inout uint trail) {
 // read inside the loop, llvmpipe gathered them lane by lane at every step.
 void walk_to_leaf(inout uint node, inout uint trail, vec3 rd, DopRay ray, vec3 shift, int depth, float tNear,
                   float tCut) {
-    if (node == 0u && trail == 0u) {
-        // the start: the root itself
-        node = uSegmentCount > 0 && bound_entered(root_interval(rd, shift, ray), tNear, tCut) ? 0u : WALK_DONE;
-    }
+    // a fresh walk starts at the root without testing the root's own bound: its children's tests cover it
+    // (a ray that misses the tree takes one step more), and the test cost ~300 instructions in each of the
+    // two walks of every invocation, the second of which never starts fresh (llvmpipe runs it anyway)
+    node = node == 0u && trail == 0u && uSegmentCount == 0 ? WALK_DONE : node;
     // the node's level is carried, not found again from its index at every step (findMSB is ~20
     // instructions a lane here); node_level(WALK_DONE) is -1, which ends the loop as the node does
     int level = node_level(node);

@@ -80,7 +80,7 @@ def _walk(bvh, o, d, t_near=0.0):
         return far, trail & ~(1 << resume)
 
     visited = []
-    node, trail = (0, 0) if entered(bound(0)) else (None, 0)
+    node, trail = 0, 0          # the root's own bound is not tested: its children's tests cover it
     while node is not None:
         if level(node) == depth:
             visited.append(int(bvh.order[node - first]))
