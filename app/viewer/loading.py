@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from ..render.bvh import build_bvh
 from ..scene.containers import Scene
 from ..scene.generators import build_scene
 from .navigate import make_camera
@@ -122,7 +123,7 @@ class SceneLoading:
         t0 = time.perf_counter()
         self.scene = scene
         self._built_scene_key = key
-        self.vp.set_scene(scene)
+        self.vp.set_scene(scene, box.get("bvh"))
         self.ctx.finish()
         upload = time.perf_counter() - t0
         self._shown_key = None
@@ -133,7 +134,8 @@ class SceneLoading:
         s.stats.scene_gpu_bytes = self.renderer.scene_gpu_bytes
         if name:
             src = getattr(scene, "source", None)
-            stages = ", ".join(f"{k} {v:.2f} s" for k, v in (getattr(src, "seconds", None) or {}).items())
+            seconds = {**(getattr(src, "seconds", None) or {}), "hierarchy": box.get("bvh_s", 0.0)}
+            stages = ", ".join(f"{k} {v:.2f} s" for k, v in seconds.items())
             strands = f"{src.strands:,} strands -> " if src is not None else ""
             print(f"vfiber view: {name}: {strands}{scene.n_segments:,} container segments in {wall:.2f} s "
                   f"({stages}); {scene.nbytes / 1e6:.1f} MB uploaded in {upload:.2f} s", file=sys.stderr, flush=True)
@@ -192,6 +194,10 @@ def _build_into(params, box: dict[str, Any]) -> None:
             scene = build_scene(params)
         if scene.n_segments == 0:
             raise ValueError("the parameters give no containers")
+        # the walk's hierarchy too (numpy only): on the window's thread harolongo's froze the UI for ~2 s
+        t0 = time.perf_counter()
+        box["bvh"] = build_bvh(scene)
+        box["bvh_s"] = time.perf_counter() - t0
         box["scene"] = scene
     except Exception as e:  # whatever a groom file or a generator raises: the viewer says it and stays up
         box["error"] = f"{type(e).__name__}: {e}"

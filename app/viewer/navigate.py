@@ -54,18 +54,24 @@ def make_camera(p: Params, scene: Scene, aspect: float) -> Camera:
     """``Camera.from_params`` with the viewport's aspect where the camera module takes one (automatic
     framing then fits the width too), without it where it does not.
 
-    The last camera is kept: the viewer asks for it several times a UI frame, and framing a 158,100-segment
-    groom costs ~20 ms each time. A copy is handed out, so a caller that moves it cannot move the cache."""
-    global _last_camera
+    The last few cameras are kept: the viewer asks for them several times a UI frame, and framing a
+    158,100-segment groom costs ~12-20 ms each time. More than one, because a UI frame asks at two aspects
+    (the viewport's and the render size's, which rounding makes differ): with one kept, every interactive
+    frame of harolongo framed twice (~23 ms of its ~100 ms). A copy is handed out, so a caller that moves it
+    cannot move the cache."""
     key = (tuple((k, v) for k, v in p.values.items() if k.startswith("camera.")), float(aspect))
-    if _last_camera is not None and _last_camera[0] == key and _last_camera[1] is scene:
-        return copy.deepcopy(_last_camera[2])
+    for i, (k, sc, cam) in enumerate(_cameras):
+        if k == key and sc is scene:
+            _cameras.insert(0, _cameras.pop(i))
+            return copy.deepcopy(cam)
     cam = Camera.from_params(p, scene, aspect=aspect) if _TAKES_ASPECT else Camera.from_params(p, scene)
-    _last_camera = (key, scene, copy.deepcopy(cam))
+    _cameras.insert(0, (key, scene, copy.deepcopy(cam)))
+    del _cameras[KEPT_CAMERAS:]
     return cam
 
 
-_last_camera: tuple[tuple, Scene, Camera] | None = None
+KEPT_CAMERAS = 4
+_cameras: list[tuple[tuple, Scene, Camera]] = []       # most recently used first
 
 
 _TAKES_ASPECT = "aspect" in inspect.signature(Camera.from_params).parameters

@@ -170,7 +170,8 @@ class Progressive:
         if what == "new":
             self._update_counts()
             self._cost_job = None
-            weights = self._weights = row_weights(self.scene, cam, size)
+            walked = self.renderer.visibility(s.params, cam, size, mode) == "walk"
+            weights = self._weights = row_weights(self.scene, cam, size, walked)
             model = self.vp.models.get(("draw", mode, one_pass_aa))
             predicted = model.predict(weights.sum()) if model else None
             refines = predicted is None or predicted > self._budget(quality)
@@ -318,7 +319,8 @@ class Progressive:
             def draw(region):
                 return self.renderer.render(p, cam, size, outputs=("cost",), mode=mode, region=region)
             model = self.vp.models.setdefault(("cost", mode), CostModel())
-            job = StripJob(size, draw, model, self.ctx.finish, row_weights(self.scene, cam, size))
+            walked = self.renderer.visibility(p, cam, size, mode) == "walk"
+            job = StripJob(size, draw, model, self.ctx.finish, row_weights(self.scene, cam, size, walked))
             self._cost_job = (self._shown_key, job)
         job = self._cost_job[1]
         try:

@@ -15,17 +15,11 @@ uniform float uGrowPx;          // the filtered mode's footprint half-width in p
 
 void main() {
     int node = uCoverageFirst + gl_InstanceID;
-    vec4 a = bvhNodes[2 * node];
-    vec4 b = bvhNodes[2 * node + 1];
-    vec3 lo = a.xyz + uSceneFromCamera;
-    vec3 hi = b.xyz + uSceneFromCamera;
-    // a leaf holds its container's bounding cylinder (base a.xyz, radius a.w, axis b.xyz, length b.w)
-    vec3 reach = a.w * sqrt(max(vec3(0.0), 1.0 - b.xyz * b.xyz));
-    vec3 tip = lo + b.xyz * b.w;
-    bool leaf = node >= uBvhLeaves - 1;
-    bool empty = leaf ? a.w < 0.0 : !(lo.x <= hi.x);
-    hi = leaf ? max(lo, tip) + reach : hi;
-    lo = leaf ? min(lo, tip) - reach : lo;
+    vec3 lo, hi;
+    node_box(node, lo, hi);
+    bool empty = !(lo.x <= hi.x);
+    lo += uSceneFromCamera;
+    hi += uSceneFromCamera;
     vec2 corner = vec2(float(gl_VertexID == 1 || gl_VertexID == 2 || gl_VertexID == 4),
                        float(gl_VertexID == 2 || gl_VertexID == 4 || gl_VertexID == 5));
     vec2 pLo = vec2(3e38);

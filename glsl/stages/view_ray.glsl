@@ -1,5 +1,6 @@
 // view_ray.glsl: the camera ray through a pixel, camera at the origin (positions are camera-relative).
-//   vec3 view_ray(vec2 offset)     offset: sub-pixel, in pixels about the pixel centre
+//   vec3 view_ray(vec2 offset)                 offset: sub-pixel, in pixels about the pixel centre
+//   vec3 view_ray_at(vec2 frag, vec2 offset)   the same through another pixel (its centre's window position)
 
 #ifndef STAGES_VIEW_RAY_GLSL
 #define STAGES_VIEW_RAY_GLSL
@@ -11,9 +12,15 @@ uniform vec2 uViewport;
 uniform vec2 uPixelOffset;      // sub-pixel offset of the ray (antialiasing, stability tests)
 uniform float uNear;
 
-vec3 view_ray(vec2 offset) {
-    vec2 ndc = (gl_FragCoord.xy + offset) / uViewport * 2.0 - 1.0;
+// ... through the pixel whose centre is at window position `frag` (a pass that runs over a list of
+// pixels, walk.frag, casts the ray of the listed one, bit for bit the ray its own fragment would cast)
+vec3 view_ray_at(vec2 frag, vec2 offset) {
+    vec2 ndc = (frag + offset) / uViewport * 2.0 - 1.0;
     return normalize(uCamForward + ndc.x * uCamRight + ndc.y * uCamUp);
+}
+
+vec3 view_ray(vec2 offset) {
+    return view_ray_at(gl_FragCoord.xy, offset);
 }
 
 #endif

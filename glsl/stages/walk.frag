@@ -8,9 +8,12 @@
 // (uState, uHit*), and resolve.frag shades the winner once. One draw traverses one container per pixel,
 // like a proxy fragment did: llvmpipe runs a loop as long as its slowest lane, so a loop over several
 // containers would make each SIMD batch pay for its deepest pixel at every step. A pixel that needs
-// another container counts itself in `unfinished`, and the renderer draws again
-// (renderer.py: Renderer._walk_draws); mark_done.frag then writes depth where a pixel is done, and the
-// early depth test keeps it out of later draws (the rasterizer, not this shader, skips it).
+// another container appends itself to a list (`unfinished` counts it), and the renderer draws again
+// (renderer.py: Renderer._walk_draws) over the list instead of the screen: fragment k of that draw walks
+// listed pixel k. The pixels left after a draw are scattered, and a SIMD batch of 8 neighbouring pixels
+// pays the whole batch for one of them; the list packs them 8 to a batch (harolongo: the draws after the
+// first cost 2.2 us a pixel over the screen, ~0.6 listed). The first draw of a range runs over the screen
+// where the coverage pass drew (the early depth test skips the rest).
 // Variants (defines): TRAVERSAL 0 fast (the first container with a hit wins), 1 exact, 2 brute;
 // COST_PASS also adds up the work of every draw in uCost and uWalk. FILTER 1 (quality.filter = coverage,
 // exact only): each container also adds the share of the pixel's footprint its fibers cover, shaded as one
@@ -37,6 +40,10 @@ layout(early_fragment_tests) in;
 #endif
 
 uniform int uRestart;           // 1: a new fiber range begins, walk from the nearest container again
+uniform int uListed;            // 1: fragment k walks entry k of uListIn (of uListCount), 0: its own pixel
+uniform int uListCount;
+uniform int uListBlocks;        // 1: entries 8b..8b+7 are the 4x2 block b of a uListWidth-wide rectangle
+uniform int uListWidth;
 
 // x: best hit t (bits; 0: none yet), y: its scene segment, z, w: the pixel's place in the walk (node,
 // trail: bvh.glsl; node WALK_DONE: this pixel is done). All zero is a fresh pixel at the root, so the
@@ -53,6 +60,27 @@ layout(binding = 5, rgba32f) uniform coherent image2D uAccum;     // linear colo
 layout(binding = 6, r32f) uniform coherent image2D uAccumFront;   // world t of the nearest colour so far
 #endif
 layout(std430, binding = 3) buffer Progress { uint unfinished; };
+// the pixels still walking (x | y << 16), entry k at texel (k mod width, k / width): the list this draw
+// walks and the one it appends to (renderer.py: LIST_UNITS)
+layout(binding = 10, r32ui) uniform readonly uimage2D uListIn;
+layout(binding = 11, r32ui) uniform writeonly uimage2D uListOut;
+
+ivec2 list_texel(uint k, int width) {
+    return ivec2(int(k % uint(width)), int(k / uint(width)));
+}
+
+// The pixel this fragment walks: its own, or in a listed draw the entry of its place in the rectangle,
+// numbered so that a SIMD batch (a 4x2 block) takes 8 consecutive entries, which the draw before
+// appended together from one batch of neighbouring pixels.
+ivec2 walked_pixel(out bool valid) {
+    ivec2 f = ivec2(gl_FragCoord.xy);
+    int k = uListBlocks != 0
+        ? (((f.y >> 1) * (uListWidth >> 2) + (f.x >> 2)) << 3) | ((f.y & 1) << 2) | (f.x & 3)
+        : f.y * uListWidth + f.x;
+    valid = uListed == 0 || k < uListCount;
+    uint e = imageLoad(uListIn, list_texel(uint(min(k, max(uListCount - 1, 0))), imageSize(uListIn).x)).x;
+    return uListed != 0 ? ivec2(int(e & 0xFFFFu), int(e >> 16)) : f;
+}
 
 // A container whose box the ray enters after bestT cannot hold a nearer fiber; the margin covers the
 // float32 rounding between the box entry and the container entry computed in unit space.
@@ -60,14 +88,33 @@ float walk_cut(float bestT) {
     return bestT < INF ? bestT * (1.0 + EPS_WALK_CUT) : INF;
 }
 
+// v itself, through an operation the compiler cannot see through (bit 30 of a window coordinate is 0):
+// a uniform the walk's loop reads directly is re-read inside the loop, and llvmpipe reads it there as a
+// per-lane gather at every step (perf: two a step, ~4% of the loop)
+int opaque(int v) {
+    return v | (int(gl_FragCoord.y) & 0x40000000);
+}
+float opaque(float v) {
+    return uintBitsToFloat(floatBitsToUint(v) | (uint(gl_FragCoord.y) & 0x40000000u));
+}
+vec3 opaque(vec3 v) {
+    return vec3(opaque(v.x), opaque(v.y), opaque(v.z));
+}
+
 void main() {
-    ivec2 px = ivec2(gl_FragCoord.xy);
+    bool valid;
+    ivec2 px = walked_pixel(valid);
+    if (!valid) discard;        // past the list's end: a discarded fragment stores nothing
     uvec4 state = imageLoad(uState, px);
     float bestT = state.x == 0u ? INF : uintBitsToFloat(state.x);
     uint bestSeg = state.y;
     uint node = uRestart != 0 ? 0u : state.z;
     uint trail = uRestart != 0 ? 0u : state.w;
-    vec3 rd = view_ray(uPixelOffset);
+    vec3 rd = view_ray_at(vec2(px) + 0.5, uPixelOffset);
+    vec3 shift = opaque(uSceneFromCamera);
+    DopRay ray = dop_ray(rd, shift);
+    int depth = opaque(uBvhDepth);
+    float tNear = opaque(uNear);
 #if FILTER
     gBoundGrow = uFootprint;
     vec4 accum = imageLoad(uAccum, px);
@@ -78,11 +125,11 @@ void main() {
 #endif
 
     // on to the next container (a pixel that stopped at one last draw stands on it already)
-    walk_to_leaf(node, trail, rd, uNear, cut);
-    bool visit = node != WALK_DONE && node_level(node) == uBvhDepth;
+    walk_to_leaf(node, trail, rd, ray, shift, depth, tNear, cut);
+    bool visit = node != WALK_DONE && node_level(node) == depth;
     // no branch around the traversal: under a lane mask llvmpipe pays a blend for every assignment in it,
     // so a pixel with nothing to visit traverses segment 0 along an empty interval instead
-    uint id = bvhOrder[visit ? int(node) - (uBvhLeaves - 1) : 0];
+    uint id = leaf_segment(visit ? int(node) - (uBvhLeaves - 1) : 0);
     Segment seg = fetch_segment(id);
     UnitRay ur;
     bool inside = to_unit_space(seg, vec3(0.0), rd, uNear, ur) && visit;
@@ -135,7 +182,7 @@ void main() {
     pop(upNode, upTrail);
     node = visit ? upNode : node;
     trail = visit ? upTrail : trail;
-    walk_to_leaf(node, trail, rd, uNear, cut);
+    walk_to_leaf(node, trail, rd, ray, shift, depth, tNear, cut);
     node = (gMode == 0 && bestT < INF) ? WALK_DONE : node;     // fast: the first container with a hit wins
     bool finished = node == WALK_DONE;
     imageStore(uState, px, uvec4(bestT < INF ? floatBitsToUint(bestT) : 0u, bestSeg, node, trail));
@@ -151,5 +198,8 @@ void main() {
     imageStore(uWalk, px, imageLoad(uWalk, px)
                + vec4(visit ? 1.0 : 0.0, float(gWalkSteps), 1.0, 0.0));
 #endif
-    if (!finished) atomicAdd(unfinished, 1u);
+    if (!finished) {
+        uint slot = atomicAdd(unfinished, 1u);
+        imageStore(uListOut, list_texel(slot, imageSize(uListOut).x), uvec4(uint(px.x) | (uint(px.y) << 16)));
+    }
 }

@@ -30,3 +30,24 @@ def test_the_kept_camera_follows_parameters_aspect_and_scene():
     # a look parameter is not a camera parameter: the kept camera is still right
     look = p.replace(**{"look.exposure": 1.0})
     assert _same(make_camera(look, scene, 16 / 9), Camera.from_params(look, scene, aspect=16 / 9))
+
+
+def test_two_aspects_asked_in_turn_are_both_kept(monkeypatch):
+    """A UI frame asks for the camera at the viewport's aspect and at the render size's: both stay kept,
+    so alternating between them frames the scene once each, not once a call."""
+    import app.viewer.navigate as navigate
+
+    p = Params()
+    scene = build_scene(p)
+    calls = []
+    real = Camera.from_params
+
+    def counting(*args, **kwargs):
+        calls.append(1)
+        return real(*args, **kwargs)
+    monkeypatch.setattr(navigate.Camera, "from_params", counting)
+    monkeypatch.setattr(navigate, "_cameras", [])
+    for _ in range(5):
+        for aspect in (900 / 701, 450 / 350):
+            assert _same(navigate.make_camera(p, scene, aspect), real(p, scene, aspect=aspect))
+    assert len(calls) == 2

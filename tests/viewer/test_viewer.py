@@ -588,6 +588,51 @@ def test_strips_are_sized_by_where_the_containers_are(ctx, renderer):
     assert np.corrcoef(weights, fragments)[0, 1] > 0.8
 
 
+def test_row_weights_of_a_big_scene_sample_its_segments(monkeypatch):
+    """Past ROW_WEIGHT_SAMPLE segments the weights come from every n-th one (each new frame asks; harolongo's
+    158,100 took a third of an interactive frame): the same shape and total as from all of them."""
+    from app.scene.generators import build_scene
+    import app.viewer.display as display
+
+    p = Params({"scene.generator": "furball", "scene.count": 14_000, "scene.segments": 3})
+    scene = build_scene(p)
+    assert scene.n_segments > display.ROW_WEIGHT_SAMPLE
+    size = (160, 100)
+    cam = make_camera(p, scene, size[0] / size[1])
+    sampled = display.row_weights(scene, cam, size)
+    monkeypatch.setattr(display, "ROW_WEIGHT_SAMPLE", 10 ** 9)
+    full = display.row_weights(scene, cam, size)
+    assert np.corrcoef(sampled, full)[0, 1] > 0.95
+    assert abs(sampled.sum() / full.sum() - 1.0) < 0.05
+
+
+@pytest.mark.skipif(not (HAIR_DATA / "sintel_hair.tfx").is_file(), reason="the shared hair data is not there")
+def test_walked_rows_weigh_the_pixels_their_hair_covers(ctx, renderer):
+    """A groom drawn by the walk costs the pixels its hair covers more than the proxies stacked on them, so
+    a strip sized by proxy area overshoots where the hair thins out (harolongo's tips: a 100-ms strip for a
+    30-ms budget). Its walked row weights saturate at the row's width and keep the walk's work per unit of
+    weight within a narrow band over the rows."""
+    from app.bench.grooms import load_scene
+    from app.viewer.display import row_weights
+
+    size = (320, 180)
+    p, scene, cam = load_scene("sintel_hair.tfx", size)
+    renderer.set_scene(scene)
+    assert renderer.visibility(p, cam, size) == "walk"
+    f = renderer.render(p, cam, size, outputs=("cost",), mode="exact")
+    walk, cost = f.walk[::-1], f.cost[::-1]                 # GL rows
+    # the walk's work per row: steps, invocations (each runs the pass's straight-line code), fiber tests
+    work = walk[..., 1].sum(1) + 30 * walk[..., 2].sum(1) + 20 * cost[..., 0].sum(1)
+    busy = work > 0.05 * work.max()
+
+    def spread(weights):
+        per = work[busy] / weights[busy]
+        return np.percentile(per, 90) / np.percentile(per, 10)
+    area, covered = row_weights(scene, cam, size), row_weights(scene, cam, size, walked=True)
+    assert covered.max() <= 1.06 * size[0] < area.max()
+    assert spread(covered) < min(3.0, 0.6 * spread(area)), (spread(covered), spread(area))
+
+
 SINTEL = HAIR_DATA / "sintel_hair.tfx"
 
 
