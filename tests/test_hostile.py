@@ -386,6 +386,31 @@ def test_estimate_follows_the_renderers_own_cost(renderer):
         assert est.summary().startswith("about ")
 
 
+@pytest.mark.skipif(not (ROOT.parent / "shared" / "hair-data").is_dir(), reason="shared hair data not found")
+def test_a_walked_groom_is_estimated_by_the_containers_in_front_of_its_fibers(renderer):
+    """Dense grooms are walked: a covered pixel traverses the few containers in front of its fiber, not every
+    proxy stacked over it (harolongo's 158,100 stack ~58 deep). The estimate follows the renderer's choice
+    and its fiber tests stay within a factor of 10 of the cost output's (the proxy count was 70x over)."""
+    from app.presets import resolve_params
+    from app.render import budget
+    from app.render.camera import Camera
+    from app.scene.generators import build_scene
+
+    size = (160, 90)
+    for name in ("harolongo.data", "sintel_hair.tfx"):
+        p, _ = resolve_params(str(ROOT.parent / "shared" / "hair-data" / name))
+        scene = build_scene(p)
+        renderer.set_scene(scene)
+        cam = Camera.from_params(p, scene, aspect=size[0] / size[1])
+        measured = float(renderer.render(p, cam, size, outputs=("cost",)).cost[..., 0].sum())
+        est = budget.estimate(p.replace(**{"look.self_shadow": "off"}), scene, size)
+        assert est.visibility == renderer.visibility(p, cam, size) == "walk", name
+        assert 0.1 < est.fiber_tests / measured < 10, (name, est.fiber_tests, measured)
+        assert "walked into" in est.summary() and not est.slow
+        forced = budget.estimate(p.replace(**{"quality.visibility": "proxies"}), scene, size)
+        assert forced.visibility == "proxies" and forced.fragments > est.fragments
+
+
 def test_groom_clustering_is_estimated_before_the_scene_is_built(tmp_path):
     """The issue's scene.groom_cluster=5000 on 200,000 strands (minutes of k-means) is slow before a guide
     is built; a groom without clustering, or clustered into few guides, costs nothing to speak of."""

@@ -10,7 +10,10 @@ The model (deliberately simple, held against the renderer's own ``cost`` output,
 counted per pixel, by ``tests/test_hostile.py::test_estimate_follows_the_renderers_own_cost``):
 
 * **containers**: the scene's segments; **fragments**: the pixels their proxies cover, from each segment's
-  projected length and width at its depth (the camera the renderer would use), times ``render_scale``^2;
+  projected length and width at its depth (the camera the renderer would use), times ``render_scale``^2.
+  A frame the renderer walks (``renderer.choose_visibility``: dense grooms, the filtered mode) traverses
+  only the containers in front of each covered pixel's fiber instead, ``WALK_ENTERED`` a pixel, and pays
+  the walk's steps through the hierarchy, ``WALK_STEPS_PER_LEVEL`` a level;
 * **rays** per fragment: ``supersample``^2 or the MSAA samples (brute mode casts one), twice with traced
   shadows;
 * **fiber tests** per ray: brute force tests every fiber of the container; fast and exact test, on the
@@ -41,6 +44,11 @@ PASSES_PER_SECOND = 4.0e7
 TYPICAL_SWEEP = 0.3          # a typical piece of a ray sweeps this fraction of acos(inner / outer)
 TYPICAL_TWIST = 0.1          # ... and this fraction of its segment's twist
 FRAGMENTS_PER_SECOND = 1.0e6
+# The walk (quality.visibility, renderer.py), per covered pixel, from the grooms bench (docs/bench/grooms,
+# 640x360 exact): containers traversed 1.4-2.1 on the five shared grooms; walk steps 1.6-3.8 per level of
+# the hierarchy (harolongo 65 over 17.3 levels, sintel 23 over 10.4, Table 4's 200 containers 12.5 over 7.6).
+WALK_ENTERED = 2.0
+WALK_STEPS_PER_LEVEL = 3.0
 
 
 # Scene.from_polylines builds containers one segment at a time: about 0.2 ms each here (5,000 guides of 64
@@ -93,6 +101,8 @@ class WorkEstimate:
     passes_per_test: int     # loop passes one fiber test costs
     draws: int | None        # times every container is drawn per pass (None: unknown)
     mode: str
+    visibility: str = "proxies"     # how the renderer finds each pixel's containers (renderer.choose_visibility)
+    walk_steps: float = 0.0         # steps through the hierarchy per ray over the frame (walked frames)
 
     @property
     def fiber_tests(self) -> float:
@@ -100,7 +110,7 @@ class WorkEstimate:
 
     @property
     def seconds(self) -> float:
-        passes = self.fiber_tests * self.passes_per_test
+        passes = (self.fiber_tests * self.passes_per_test + self.walk_steps * self.rays)
         frag_work = self.fragments * self.rays * (self.draws or 1)
         return passes / PASSES_PER_SECOND + frag_work / FRAGMENTS_PER_SECOND
 
@@ -111,8 +121,9 @@ class WorkEstimate:
     def summary(self) -> str:
         """One line: what the frame costs and about how long it takes here."""
         draws = f", {self.draws} draws" if self.draws and self.draws > 1 else ""
+        found = "containers walked into" if self.visibility == "walk" else "container fragments"
         return (f"about {_count(self.fiber_tests)} fiber tests ({self.mode} mode: {_count(self.fragments)} "
-                f"container fragments of {self.containers:,} containers on {self.pixels:,} pixels, "
+                f"{found} of {self.containers:,} containers on {self.pixels:,} pixels, "
                 f"{self.rays} ray{'s' if self.rays > 1 else ''} each, {_count(self.tests_per_ray)} tests per "
                 f"ray{draws}): roughly {_duration(self.seconds)} on llvmpipe")
 
@@ -122,23 +133,42 @@ def estimate(p: Params, scene, size: tuple[int, int], mode: str | None = None) -
     mode = mode or p["quality.mode"]
     scale = p["quality.render_scale"]
     width, height = max(1, round(size[0] * scale)), max(1, round(size[1] * scale))
-    fragments = _fragments(p, scene, (width, height))
+    fragments, visibility, steps = _containers_met(p, scene, (width, height), mode)
     rays = 1 if mode == "brute" else max(p["quality.supersample"] ** 2, p["quality.msaa"], 1)
     rays *= 2 if p["look.self_shadow"] == "traced" else 1
     tests, passes = _tests_per_ray(p, scene, mode)
     return WorkEstimate(width * height, int(scene.n_segments), fragments, rays, tests, passes,
-                        _draws(p, scene, mode, rays), mode)
+                        _draws(p, scene, mode, rays), mode, visibility, steps)
 
 
-def _fragments(p: Params, scene, size: tuple[int, int]) -> float:
+def _containers_met(p: Params, scene, size: tuple[int, int], mode: str) -> tuple[float, str, float]:
+    """(containers traversed over the frame, the renderer's visibility, walk steps over the frame). Drawn
+    as proxies, every proxy fragment traverses its container; walked, a covered pixel traverses about
+    WALK_ENTERED containers, covered pixels being the proxies' fragments over the layers they stack."""
+    from .camera import Camera
+    from .renderer import choose_visibility, proxy_layers
+
+    if scene.n_segments == 0:
+        return 0.0, "proxies", 0.0
+    cam = Camera.from_params(p, scene, aspect=size[0] / size[1])
+    fragments = _fragments(scene, cam, size)
+    auto = p["quality.visibility"] == "auto"
+    layers = proxy_layers(scene, cam, size) if auto else math.nan
+    visibility = choose_visibility(p, mode, layers)
+    if visibility == "proxies":
+        return fragments, visibility, 0.0
+    if not auto:
+        layers = proxy_layers(scene, cam, size)
+    covered = min(float(size[0] * size[1]), fragments / max(layers, 1.0)) if math.isfinite(layers) \
+        else float(size[0] * size[1])
+    levels = max(1.0, math.log2(scene.n_segments))
+    return (min(fragments, covered * WALK_ENTERED), visibility, covered * WALK_STEPS_PER_LEVEL * levels)
+
+
+def _fragments(scene, cam, size: tuple[int, int]) -> float:
     """Pixels covered by container proxies, counted once per proxy: each segment's projected length plus
     its diameter, times its diameter, at the depth of its middle; no more than the image per proxy."""
-    from .camera import Camera
-
     width, height = size
-    if scene.n_segments == 0:
-        return 0.0
-    cam = Camera.from_params(p, scene, aspect=width / height)
     seg = scene.segments.astype(np.float64)
     a, b = seg[:, 0:3] + scene.origin, seg[:, 4:7] + scene.origin
     radius = np.maximum(seg[:, 3], seg[:, 7])

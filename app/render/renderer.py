@@ -332,15 +332,12 @@ class Renderer:
         filtered mode always walks: compositing a footprint over several containers needs each pixel's
         containers front to back with state kept between them, which the walk has and the proxies (one
         fragment per pixel kept by the depth test) have not."""
-        if filtered(p, mode or p["quality.mode"]):
-            return "walk"
-        choice = p["quality.visibility"]
-        if choice != "auto":
-            return choice
+        if filtered(p, mode or p["quality.mode"]) or p["quality.visibility"] != "auto":
+            return choose_visibility(p, mode, math.nan)
         key = (tuple(cam.position), tuple(cam.target), cam.fov, cam.near, tuple(size))
         if self._layers is None or self._layers[0] != key:
             self._layers = (key, proxy_layers(self.scene, cam, size))
-        return "walk" if self._layers[1] > WALK_LAYERS else "proxies"
+        return choose_visibility(p, mode, self._layers[1])
 
     def _use(self, fbo: moderngl.Framebuffer, region: tuple[int, int, int, int]) -> None:
         """Bind ``fbo`` with the pass's viewport and scissor. moderngl keeps both per framebuffer and sets
@@ -917,6 +914,18 @@ def scene_gpu_bytes(scene: Scene) -> int:
     texels = [np.prod(word_image_size(words)) for words in (5 * n, records, order)]
     return (max(scene.segments.nbytes, 80) + scene.guide_color_bytes + _QUAD.nbytes
             + int(16 * (texels[0] + texels[1]) + 4 * texels[2]))
+
+
+def choose_visibility(p: Params, mode: str | None, layers: float) -> str:
+    """"walk" or "proxies" for a frame whose proxies would stack ``layers`` deep over a covered pixel
+    (proxy_layers; unused unless quality.visibility is "auto" and the frame is not filtered): the one rule
+    that the renderer follows and the work estimate (budget.py) predicts."""
+    if filtered(p, mode or p["quality.mode"]):
+        return "walk"
+    choice = p["quality.visibility"]
+    if choice != "auto":
+        return choice
+    return "walk" if layers > WALK_LAYERS else "proxies"
 
 
 def proxy_layers(scene: Scene, cam: Camera, size: tuple[int, int], grid: int = 64) -> float:
