@@ -706,8 +706,11 @@ def _loop_budget(p: Params, rays: int, walks: int = 0) -> int:
 def needs_ring_order(p: Params, scene: Scene, mode: str, rays: int = 1, walks: int = 0) -> bool:
     """Whether one draw of every fiber needs the traversal's loops after the ring loop to go by ring index
     (uRingOrder). Each lane's own order is cheaper, but then lanes of a batch can visit different rings at
-    one iteration, and the batch pays the costliest ring's candidates at every iteration: fronts and
-    first halves by ring, plus up to K times the costliest ring for the loops after (twice for curved)."""
+    one iteration, and the batch pays the costliest of them. Straight: fronts and first halves by ring,
+    plus up to K times the costliest ring for the loops after. Curved (glsl/fibers/shaped.glsl): a lane's
+    arcs go in by ring and come back out, so at pass p every lane is on a ring no deeper than
+    min(p, 2K - 1 - p) and the batch pays at most the costliest ring up to there: twice the sum of the
+    running maximum of the rings' costs."""
     if mode == "brute":
         return False
     caps, per_test = candidate_caps(p, scene)
@@ -715,7 +718,7 @@ def needs_ring_order(p: Params, scene: Scene, mode: str, rays: int = 1, walks: i
     if not is_shaped(p):
         worst = tests.sum() + (p["fibers.rings"] + 1) * tests.max()
     else:
-        worst = 2 * tests.sum() + 2 * p["fibers.rings"] * tests.max()
+        worst = 2 * np.maximum.accumulate(tests).sum()
     return bool(worst > _loop_budget(p, rays, walks))
 
 
@@ -727,10 +730,10 @@ def draw_ranges(p: Params, scene: Scene, mode: str, rays: int = 1, walks: int = 
     Fast and exact test a ring's candidates on each piece of the ray in that ring, at most
     ``candidate_caps`` of them (curved: the loop passes of one arc, all its chord pieces included). A batch
     visits a straight ring on its front and back pieces, and the deepest pieces of its lanes (any ring, the
-    costliest one bounds them); a curved ring on up to three arcs (glsl/fibers/shaped.glsl). Rings are packed
-    into draws greedily, a ring split when it alone is too much. Every bundled layout needs one draw; 64 rings
-    of 0.01 degree fibers, or curled fibers whose reach is the whole ring, need several, and the depth test keeps the
-    nearest hit across them as it does in brute mode. The bound holds with the loops after the ring loop
+    costliest one bounds them); a curved ring on up to two arcs (glsl/fibers/shaped.glsl: going in, coming
+    out). Rings are packed into draws greedily, a ring split when it alone is too much. Every bundled layout
+    needs one draw; 64 rings of 0.01 degree fibers, or curled fibers whose reach is the whole ring, need
+    several, and the depth test keeps the nearest hit across them as it does in brute mode. The bound holds with the loops after the ring loop
     (curved: the arcs) in ring order (uRingOrder), which the renderer sets whenever there is more than one
     draw or ``needs_ring_order``. ``rays``: traversals per invocation; ``walks``: walks through the
     container hierarchy per invocation (the walk strategy)."""
@@ -746,7 +749,7 @@ def draw_ranges(p: Params, scene: Scene, mode: str, rays: int = 1, walks: int = 
     budget = _loop_budget(p, rays, walks)
     shaped = is_shaped(p)
     # per ring: arcs a batch may visit it on; per draw: deepest pieces, at the draw's costliest ring
-    visits, deepest = (2, 2) if not shaped else (3, 0)
+    visits, deepest = (2, 2) if not shaped else (2, 0)
 
     def cost(i: int, m: int) -> int:
         """Loop passes of one visit of ring i with m of its fibers in the draw."""

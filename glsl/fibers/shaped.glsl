@@ -6,8 +6,8 @@
 // [inner, outer] that holds its fibers at every height of the segment (bands of neighbouring rings may
 // overlap), and the ray's arcs through the bands are visited in order of where they start: the fronts of
 // the bands crossed twice (outer to inner), the first halves of the bands crossed once (split at the
-// ray's closest approach to the axis), their second halves, then the backs (inner to outer). One loop
-// visits them all, as traverse_straight's does.
+// ray's closest approach to the axis), their second halves (inner to outer, all starting at the closest
+// approach), then the backs (inner to outer). One loop visits them all, as traverse_straight's does.
 // An arc is seen in the frame that turns with its ring's twist (shape.glsl): there the fibers do not
 // turn, and the ray's distance to the axis is what it was, so the bands and arcs are those of the
 // untwisted ring. The arc is cut into chord pieces (curved.glsl: chord_pieces, as many as the ray's climb
@@ -120,20 +120,20 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
         nTwice += crs <= sa * band.x ? 1 : 0;
     }
     nTwice = min(nTwice, nReached);
-    // By ring (uRingOrder): arcs 0..K-1 are the first arcs of rings 0..K-1, K..2K-1 the second halves of
-    // rings 0..K-1, 2K..3K-1 the backs of rings K-1..0, so every lane of a SIMD batch visits the same ring
-    // at the same iteration (renderer.py: draw_ranges). Else each lane's own arcs, in its order.
-    bool byRing = uRingOrder != 0;
-    int arcs = byRing ? 3 * K : 2 * nReached;
+    // The arcs of a lane: its fronts and first halves by ring going in (ring p at pass p < m), then its
+    // second halves and backs by ring going back out (ring 2m - 1 - p), m = nReached. The second halves all
+    // start at the closest approach, so their order is free; going out puts every lane at pass p on a ring
+    // no deeper than min(p, 2K - 1 - p), which is what bounds a batch's loop passes with each lane in its
+    // own order (renderer.py: needs_ring_order). By ring (uRingOrder): m = K in every lane, so every lane of
+    // a SIMD batch visits the same ring at the same pass and each ring at most twice (draw_ranges).
+    int m = uRingOrder != 0 ? K : nReached;
+    int arcs = 2 * m;
     vec2 bestRest = vec2(0.0);
     float bestPhase = 0.0;
     for (int p = 0; p < arcs; p++) {
         gIters++;
-        int q = byRing ? p - K : p - nReached;          // index in the second group
-        int side = byRing ? (p < K ? 0 : (p < 2 * K ? 1 : 2))
-                          : (p < nReached ? 0 : (q < nReached - nTwice ? 1 : 2));
-        int i = byRing ? (side == 0 ? p : (side == 1 ? q : 3 * K - 1 - p))
-                       : (side == 0 ? p : (side == 1 ? nTwice + q : nReached - 1 - q));
+        int i = p < m ? p : arcs - 1 - p;
+        int side = p < m ? 0 : (i < nTwice ? 2 : 1);
         bool twice = i < nTwice;
         bool applies = i < nReached && (side == 0 || (side == 1) != twice);
         vec2 band = ring_band(i, bands);
