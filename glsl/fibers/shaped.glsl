@@ -47,6 +47,13 @@
 // ellipsoid alone its per-candidate test cost more than it saved (docs/shaped-traversal.md).
 #define SHAPED_POINT_STOP (SHAPE_CURL != 0 || SHAPE_FRIZZ)
 
+// The layout's uniforms the loops below read, copied once per invocation (shape.glsl says why): the
+// seed and the fiber ranges are never negative, so abs leaves them as they are.
+uint sSeed = uint(abs(int(uSeed)));
+ivec2 sFiberRange = abs(uFiberRange);
+ivec2 sBruteRange = abs(uBruteRange);
+float sLengthJitter = abs(uLengthJitter);
+
 struct Bands { float eLo; float eHi; };
 
 Bands segment_bands(Segment seg) {
@@ -61,7 +68,7 @@ Bands segment_bands(Segment seg) {
 
 vec2 ring_band(int i, Bands b) {
     float rho = uRingA[i].x, dr = uRingB[i].x;
-    float grow = uFiberRadius + shape_displacement() + EPS_BAND;
+    float grow = sFiberRadius + shape_displacement() + EPS_BAND;
     return vec2(max(0.0, b.eLo * (rho - dr) - grow), b.eHi * (rho + dr) + grow);
 }
 
@@ -73,7 +80,7 @@ vec2 ring_band(int i, Bands b) {
 // where the disc alone would take the whole ring.
 float shaped_disc(int i, Bands b, float rayMin) {
     float dMin = max(b.eLo * (uRingA[i].x - uRingB[i].x), rayMin);
-    float r = uFiberRadius + shape_displacement();
+    float r = sFiberRadius + shape_displacement();
     return dMin > r ? asin(r / dMin) : 3.14159265359;
 }
 
@@ -161,7 +168,7 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
         b = min(b, side == 0 ? innerT.x : outerT.y);
         inside = inside && a <= b;
 #endif
-        ivec2 share = ring_share(i, gMode == 2 ? uBruteRange : uFiberRange);
+        ivec2 share = ring_share(i, gMode == 2 ? sBruteRange : sFiberRange);
         bool open = inside && share.x < share.y;            // else none of this ring's fibers is in this draw
         gPieces += open ? 1 : 0;
         RingPoint P0 = ring_point(seg, ur, a, i);
@@ -170,7 +177,7 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
         float step = (b - a) / float(max(pieces, 1));
         vec4 ring = uRingA[i];
         vec4 ringB = uRingB[i];
-        uint ringKey = ring_key(uSeed, seg.guide, i);
+        uint ringKey = ring_key(sSeed, seg.guide, i);
         FiberRay fri = fiber_ray_ring(fr, i);           // this ring's fiber radius
         int n = uRingN[i].x;
         bool found = false;
@@ -227,8 +234,9 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
                 gTests++;
                 int j = candidate(run0, run1, dir, t);
                 vec2 rest;
-                float vEnd;
-                fiber_center_keyed(ring, ringB, ringKey, i, j, rest, vEnd);
+                float vEndUnused;
+                fiber_center_keyed(ring, ringB, ringKey, i, j, rest, vEndUnused);
+                float vEnd = fiber_v_end(ring, ringKey, i, j, sLengthJitter);
                 float phase = shaped_curl_phase(ringKey, i, j);
                 int kind;
                 float s = piece_entry(seg, fri, P0, P1, invLen, curlStep, rest, phase, vEnd, kind);
