@@ -42,10 +42,14 @@
 #define SHAPE_ELLIPSOID 1   // 0: built for ellipsoid 0 (the bands of the segment are the arc's)
 #endif
 
-// Exact mode's stop at the best hit's point (in traverse_shaped) pays where the displacement widens the
-// windows (curl, frizz, noise: 10% fewer fiber tests on the bench's curled scene); for twist or the
-// ellipsoid alone its per-candidate test cost more than it saved (docs/shaped-traversal.md).
+// Exact mode's stop at the best hit's point and the length screen (in traverse_shaped) pay where the
+// displacement widens the windows (curl, frizz, noise: 10% and 40% fewer fiber tests on the bench's curled
+// scene); for twist or the ellipsoid alone their per-candidate work cost more than it saved
+// (docs/shaped-traversal.md).
 #define SHAPED_POINT_STOP (SHAPE_CURL != 0 || SHAPE_FRIZZ)
+#ifndef SHAPED_SCREEN
+#define SHAPED_SCREEN (SHAPE_CURL != 0 || SHAPE_FRIZZ)   // a define of 0 turns it off (the tests compare)
+#endif
 
 // The layout's uniforms the loops below read, copied once per invocation (shape.glsl says why): the
 // seed and the fiber ranges are never negative, so abs leaves them as they are.
@@ -105,8 +109,67 @@ float shaped_curl_phase(uint ringKey, int ring, int j) {
 #endif
 }
 
+// A chord piece as its candidates see it, and what its scan carries from one candidate to the next.
+struct ShapedPiece {
+    RingPoint P0, P1;
+    float invLen;       // 1 / (P1.s - P0.s), 0 for a piece of no length
+    vec4 curlStep;      // ring_curl_step(P0, P1)
+    vec4 A, B;          // the ring's uniforms
+    uint ringKey;
+    int ring;
+    int after;          // exact: candidates past an improvement that can still be nearer
+    int dir;            // +1 or -1: the order of the slots along the sweep
+    vec2 turn;          // (cos, sin) that turns a rest direction back by the disc, against dir
+    bool angled;        // the point stop may compare angles (they lie within half a turn)
+};
+struct ShapedScan {
+    FiberHit best;
+    vec2 bestRest;
+    float bestPhase;
+    bool found;         // this arc has improved the best
+    int end;            // the candidates to scan: [0, end)
+    vec2 H;             // the chord's point at the best hit (or the piece's end while it lies beyond)
+};
+
+// Candidate t (fiber j) of a piece: its test, the best hit, and exact mode's and fast mode's stops.
+void shaped_candidate(Segment seg, FiberRay fri, ShapedPiece pc, int t, int j, inout ShapedScan sc) {
+    gTests++;
+    vec2 rest;
+    float vEndUnused;
+    fiber_center_keyed(pc.A, pc.B, pc.ringKey, pc.ring, j, rest, vEndUnused);
+    float vEnd = fiber_v_end(pc.A, pc.ringKey, pc.ring, j, sLengthJitter);
+    float phase = shaped_curl_phase(pc.ringKey, pc.ring, j);
+    int kind;
+    float s = piece_entry(seg, fri, pc.P0, pc.P1, pc.invLen, pc.curlStep, rest, phase, vEnd, kind);
+    s = pc.ring == gSkipRing && j == gSkipFiber ? INF : s;
+    bool better = beats(s, pc.ring, j, sc.best.s, sc.best.ring, sc.best.fiber);
+    sc.best.s = better ? s : sc.best.s;
+    sc.best.ring = better ? pc.ring : sc.best.ring;
+    sc.best.fiber = better ? j : sc.best.fiber;
+    sc.best.kind = better ? kind : sc.best.kind;
+    sc.bestRest = better ? rest : sc.bestRest;
+    sc.bestPhase = better ? phase : sc.bestPhase;
+    sc.found = sc.found || better;
+    sc.end = !better ? sc.end : (gMode == 0 ? t : min(sc.end, t + 1 + pc.after));   // fast: the first wins
+#if SHAPED_POINT_STOP
+    // exact: a hit nearer than the best so far lies on this chord before the best's point H (the piece's
+    // end while the best lies beyond it). A fiber is hit only where the chord comes within the disc of
+    // its rest position, so where its rest direction, turned back by the disc, lies past H (seen from
+    // the axis, along the sweep), it and every later slot (the jitter keeps the rest directions in slot
+    // order) are hit after H, if at all: the scan stops there. Valid while the angles compared stay
+    // within half a turn of each other.
+    sc.H = better ? pc.P0.p + ((s - pc.P0.s) * pc.invLen) * (pc.P1.p - pc.P0.p) : sc.H;
+    vec2 back = vec2(pc.turn.x * rest.x - pc.turn.y * rest.y, pc.turn.y * rest.x + pc.turn.x * rest.y);
+    bool beyond = pc.angled && float(pc.dir) * (sc.H.x * back.y - sc.H.y * back.x) > 0.0;
+    sc.end = beyond ? min(sc.end, t + 1) : sc.end;
+#endif
+}
+
 FiberHit traverse_shaped(Segment seg, UnitRay ur) {
-    FiberHit best = no_hit();
+    ShapedScan sc;
+    sc.best = no_hit();
+    sc.bestRest = vec2(0.0);
+    sc.bestPhase = 0.0;
     FiberRay fr = fiber_ray(seg, ur);
     Bands bands = segment_bands(seg);
     vec2 o2 = ur.O.xy;
@@ -135,8 +198,6 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
     // a SIMD batch visits the same ring at the same pass and each ring at most twice (draw_ranges).
     int m = uRingOrder != 0 ? K : nReached;
     int arcs = 2 * m;
-    vec2 bestRest = vec2(0.0);
-    float bestPhase = 0.0;
     for (int p = 0; p < arcs; p++) {
         gIters++;
         int i = p < m ? p : arcs - 1 - p;
@@ -151,7 +212,7 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
         float a = max(sA, ur.s0);
         float b = min(sB, ur.s1);
         bool inside = applies && a <= b;
-        if (inside && gMode != 2 && a >= best.s) break;     // arcs come in order of their start
+        if (inside && gMode != 2 && a >= sc.best.s) break;     // arcs come in order of their start
         Bands arcBands = bands;
 #if SHAPE_ELLIPSOID
         // The heights the arc spans bound the ellipsoid's scale tighter than the segment's do: the ring's
@@ -175,49 +236,52 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
         RingPoint Pb = ring_point(seg, ur, b, i);
         int pieces = open ? chord_pieces(b - a, abs(Pb.v - P0.v), sa, i, arcBands.eLo) : 0;
         float step = (b - a) / float(max(pieces, 1));
-        vec4 ring = uRingA[i];
-        vec4 ringB = uRingB[i];
-        uint ringKey = ring_key(sSeed, seg.guide, i);
+        ShapedPiece pc;
+        pc.A = uRingA[i];
+        pc.B = uRingB[i];
+        pc.ringKey = ring_key(sSeed, seg.guide, i);
+        pc.ring = i;
         FiberRay fri = fiber_ray_ring(fr, i);           // this ring's fiber radius
         int n = uRingN[i].x;
-        bool found = false;
+        sc.found = false;
+        pc.P0 = P0;
         for (int k = 0; k < pieces; k++) {
             gIters++;
             // the last piece ends at b itself: one ring_point with its parameter chosen (a select of two
             // points would run both, and a piece's point costs a division, a root and, twisted, a sine)
-            RingPoint P1 = ring_point(seg, ur, k == pieces - 1 ? b : a + float(k + 1) * step, i);
-            float invLen = P1.s > P0.s ? 1.0 / (P1.s - P0.s) : 0.0;
+            pc.P1 = ring_point(seg, ur, k == pieces - 1 ? b : a + float(k + 1) * step, i);
+            pc.invLen = pc.P1.s > pc.P0.s ? 1.0 / (pc.P1.s - pc.P0.s) : 0.0;
 #if SHAPE_CURL != 0
-            vec4 curlStep = ring_curl_step(P0, P1);
+            pc.curlStep = ring_curl_step(pc.P0, pc.P1);
 #else
-            vec4 curlStep = vec4(0.0);
+            pc.curlStep = vec4(0.0);
 #endif
             // the candidates: slots within the reach of the angles the piece sweeps (a chord never
             // sweeps half a turn or more: past 2.5 radians it passes so near the axis that all are taken)
-            float rayMin = chord_distance(P0.p, P1.p) * (1.0 - EPS_CHORD);
+            float rayMin = chord_distance(pc.P0.p, pc.P1.p) * (1.0 - EPS_CHORD);
             float reach = shaped_reach(i, arcBands, rayMin);
             // exact: a hit nearer than one on candidate t lies before it on the chord, so its fiber's slot
             // is at most two reaches further on (traverse_straight's rule, with the piece's reach)
-            int after = gMode == 1 ? int(floor(2.0 * reach * ringB.z * (1.0 + EPS_AFTER))) + 1 : n;
-            vec2 pA = dot(P0.p, P0.p) > 0.0 ? P0.p : P1.p;
-            vec2 pB = dot(P1.p, P1.p) > 0.0 ? P1.p : pA;
+            pc.after = gMode == 1 ? int(floor(2.0 * reach * pc.B.z * (1.0 + EPS_AFTER))) + 1 : n;
+            vec2 pA = dot(pc.P0.p, pc.P0.p) > 0.0 ? pc.P0.p : pc.P1.p;
+            vec2 pB = dot(pc.P1.p, pc.P1.p) > 0.0 ? pc.P1.p : pA;
             float thA = atan(pA.y, pA.x);
             float span = wrap_pi(atan(pB.y, pB.x) - thA);
             int dir = gMode == 2 || span >= 0.0 ? 1 : -1;
-            float first = (thA - float(dir) * reach - ring.z) * ringB.z;
-            float last = (thA + span + float(dir) * reach - ring.z) * ringB.z;
+            pc.dir = dir;
+            float first = (thA - float(dir) * reach - pc.A.z) * pc.B.z;
+            float last = (thA + span + float(dir) * reach - pc.A.z) * pc.B.z;
 #if SHAPED_POINT_STOP
-            // exact: a hit nearer than the best so far lies on this chord before the best's point H (the
-            // piece's end while the best lies beyond it). A fiber is hit only where the chord comes within
-            // the disc of its rest position, so where its rest direction, turned back by the disc, lies
-            // past H (seen from the axis, along the sweep), it and every later slot (the jitter keeps the
-            // rest directions in slot order) are hit after H, if at all: the scan stops there. Valid while
-            // the angles compared stay within half a turn of each other.
-            float sH = clamp(best.s, P0.s, P1.s);
-            vec2 H = sH >= P1.s ? P1.p : P0.p + ((sH - P0.s) * invLen) * (P1.p - P0.p);
-            bool angled = gMode == 1 && abs(span) + 2.0 * reach < 3.0;
+            // exact: the best's point on this chord (shaped_candidate says what stops there)
+            float sH = clamp(sc.best.s, pc.P0.s, pc.P1.s);
+            sc.H = sH >= pc.P1.s ? pc.P1.p : pc.P0.p + ((sH - pc.P0.s) * pc.invLen) * (pc.P1.p - pc.P0.p);
+            pc.angled = gMode == 1 && abs(span) + 2.0 * reach < 3.0;
             float disc = shaped_disc(i, arcBands, rayMin) + EPS_ANGLE;
-            vec2 turn = vec2(cos(disc), -float(dir) * sin(disc));
+            pc.turn = vec2(cos(disc), -float(dir) * sin(disc));
+#else
+            sc.H = vec2(0.0);
+            pc.angled = false;
+            pc.turn = vec2(1.0, 0.0);
 #endif
             int j0 = dir > 0 ? int(ceil(first)) : int(floor(first));
             int j1 = dir > 0 ? int(floor(last)) : int(ceil(last));
@@ -226,51 +290,57 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
             count = gMode == 2 ? n : count;
             ivec2 run0 = candidate_run(0, j0, dir, count, n, share);
             ivec2 run1 = candidate_run(1, j0, dir, count, n, share);
-            int end = run0.y + run1.y;
-            // the scan's rules (skip, tie order, fast/exact stop) as traverse_straight's: straight.glsl
-            // says why the two loops are apart; change both together
-            for (int t = 0; t < end; t++) {
+            sc.end = run0.y + run1.y;
+            // The scan's rules (skip, tie order, fast/exact stop) as traverse_straight's: straight.glsl
+            // says why the two loops are apart; change both together.
+#if SHAPED_SCREEN
+            // The window goes in chunks of 32 slots. Fibers that end below the whole piece cannot be hit on
+            // it (piece_entry's length cut), and where the piece climbs above 1 - length jitter some of them
+            // do: there a cheap pass over the chunk (the length random: two hash rounds) marks the fibers
+            // that reach the piece, and only those get the full test. (On the bench's curled scene half of
+            // the tests were fibers ending below the ray; for twist or the ellipsoid alone the chunks cost
+            // more than they save.) Brute force tests every fiber, as it always did.
+            float vLow = min(pc.P0.v, pc.P1.v) - EPS_V_END;
+            bool screen = gMode != 2 && vLow > 1.0 - sLengthJitter;
+            for (int t0 = 0; t0 < sc.end; t0 += 32) {
                 gIters++;
-                gTests++;
-                int j = candidate(run0, run1, dir, t);
-                vec2 rest;
-                float vEndUnused;
-                fiber_center_keyed(ring, ringB, ringKey, i, j, rest, vEndUnused);
-                float vEnd = fiber_v_end(ring, ringKey, i, j, sLengthJitter);
-                float phase = shaped_curl_phase(ringKey, i, j);
-                int kind;
-                float s = piece_entry(seg, fri, P0, P1, invLen, curlStep, rest, phase, vEnd, kind);
-                s = i == gSkipRing && j == gSkipFiber ? INF : s;
-                bool better = beats(s, i, j, best.s, best.ring, best.fiber);
-                best.s = better ? s : best.s;
-                best.ring = better ? i : best.ring;
-                best.fiber = better ? j : best.fiber;
-                best.kind = better ? kind : best.kind;
-                bestRest = better ? rest : bestRest;
-                bestPhase = better ? phase : bestPhase;
-                found = found || better;
-                end = !better ? end : (gMode == 0 ? t : min(end, t + 1 + after));   // fast: the first wins
-#if SHAPED_POINT_STOP
-                H = better ? P0.p + ((s - P0.s) * invLen) * (P1.p - P0.p) : H;
-                vec2 back = vec2(turn.x * rest.x - turn.y * rest.y, turn.y * rest.x + turn.x * rest.y);
-                bool beyond = angled && float(dir) * (H.x * back.y - H.y * back.x) > 0.0;
-                end = beyond ? min(end, t + 1) : end;
-#endif
+                int width = min(32, sc.end - t0);
+                uint reaches = 0u;
+                for (int u = 0; u < (screen ? width : 0); u++) {
+                    gIters++;
+                    int j = candidate(run0, run1, dir, t0 + u);
+                    reaches |= fiber_v_end(pc.A, pc.ringKey, i, j, sLengthJitter) >= vLow ? 1u << u : 0u;
+                }
+                uint live = screen ? reaches : (width >= 32 ? 0xffffffffu : (1u << width) - 1u);
+                while (live != 0u) {
+                    gIters++;
+                    int t = t0 + findLSB(live);
+                    live &= live - 1u;
+                    shaped_candidate(seg, fri, pc, t, candidate(run0, run1, dir, t), sc);
+                    live = t + 1 >= sc.end ? 0u : live;
+                }
             }
+#else
+            for (int t = 0; t < sc.end; t++) {
+                gIters++;
+                shaped_candidate(seg, fri, pc, t, candidate(run0, run1, dir, t), sc);
+            }
+#endif
             // exact: no later piece can start before the nearest hit; fast: stop at the first
-            bool stop = gMode == 0 ? found : (gMode == 1 && P1.s >= best.s);
+            bool stop = gMode == 0 ? sc.found : (gMode == 1 && pc.P1.s >= sc.best.s);
             pieces = stop ? k + 1 : pieces;
-            P0 = P1;
+            pc.P0 = pc.P1;
         }
-        if (gMode == 0 && found) break;
+        if (gMode == 0 && sc.found) break;
     }
     // the hit fiber's centre and how it moves with v, in the container's frame, for shading
+    FiberHit best = sc.best;
     bool hit = best.s < INF;
     float v = unit_to_v(seg, ur.O.z + (hit ? best.s : 0.0) * ur.D.z);
     int ringHit = max(best.ring, 0);
-    best.c = fiber_center_at(bestRest, v, ringHit, bestPhase);
-    best.dcdv = (fiber_center_at(bestRest, v + DCDV_STEP, ringHit, bestPhase)
-               - fiber_center_at(bestRest, v - DCDV_STEP, ringHit, bestPhase)) / (2.0 * DCDV_STEP);
+    best.c = fiber_center_at(sc.bestRest, v, ringHit, sc.bestPhase);
+    best.dcdv = (fiber_center_at(sc.bestRest, v + DCDV_STEP, ringHit, sc.bestPhase)
+               - fiber_center_at(sc.bestRest, v - DCDV_STEP, ringHit, sc.bestPhase)) / (2.0 * DCDV_STEP);
     return best;
 }
 

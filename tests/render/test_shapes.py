@@ -62,8 +62,34 @@ def test_the_stop_at_the_best_point_keeps_exact_equal_to_brute(renderer, shape, 
     assert exact.cost[..., 3].max() < 65_535
 
 
+# The length screen (shaped.glsl: SHAPED_SCREEN) passes over fibers that end below a whole chord piece:
+# long length jitter, curled fibers, seen across the tips and from above them.
+SCREEN = {**POINT_STOP, "fibers.length_jitter": 0.7, "shape.curl_amplitude": 0.4, "shape.curl_frequency": 6.0}
+
+
+@pytest.mark.parametrize("elevation", [10.0, 60.0])
+def test_the_length_screen_keeps_every_fiber_and_saves_tests(renderer, monkeypatch, elevation):
+    import app.render.renderer as renderer_module
+
+    p, scene, cam = setup(renderer, SCREEN, {"elevation": elevation})
+    screened = renderer.render(p, cam, SIZE, outputs=("ids", "cost"), mode="exact")
+    brute = renderer.render(p, cam, SIZE, outputs=("ids",), mode="brute")
+    defines = renderer_module.model_defines
+    monkeypatch.setattr(renderer_module, "model_defines", lambda *a, **k: {**defines(*a, **k), "SHAPED_SCREEN": 0})
+    plain = renderer.render(p, cam, SIZE, outputs=("ids", "cost"), mode="exact")
+    assert screened.hit.sum() > 300
+    differ = np.any(screened.ids[..., :3] != brute.ids[..., :3], -1).sum()
+    assert differ == 0, f"elevation {elevation}: {differ} pixels differ from brute force"
+    assert (plain.ids == screened.ids).all()
+    covered = screened.cost[..., 2] > 0
+    tests, unscreened = screened.cost[..., 0][covered].sum(), plain.cost[..., 0][covered].sum()
+    assert tests < 0.8 * unscreened, f"the screen left {tests} of {unscreened} fiber tests"
+    assert screened.cost[..., 3].max() < 65_535
+
+
 def test_curved_glsl_matches_float64_reference(renderer):
-    assert_matches_reference(renderer, [(values, {"elevation": 25.0}) for values in SHAPES.values()])
+    assert_matches_reference(renderer, [(values, {"elevation": 25.0}) for values in SHAPES.values()]
+                             + [(SCREEN, {"elevation": 60.0})])
 
 
 def test_twisted_fibers_have_twisted_tangents(renderer):
