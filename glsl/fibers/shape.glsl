@@ -88,6 +88,9 @@ float sNoiseFrequency = abs(uNoiseFrequency);
 #ifndef SHAPE_CURL
 #define SHAPE_CURL 3    // what ring_frame_center builds in: 0 no curl, 1 helix, 2 wave, 3 either (by uniform)
 #endif
+#ifndef SHAPE_ELLIPSOID
+#define SHAPE_ELLIPSOID 1   // 0: built for ellipsoid 0 (every scale is 1)
+#endif
 
 float shape_twist(float v, int ring) {
     float t = sTwistPattern == TWIST_RAMPED ? v * v : v;
@@ -131,24 +134,44 @@ vec2 frizz_offset(Frizz f, float v) {
     return k * f.dir + m * vec2(-f.dir.y, f.dir.x);
 }
 
+// The SHAPE_ defines leave out what the parameters do not use (llvmpipe runs both sides of every branch):
+// a twist of 0 turns by cos 0 = 1 and sin 0 = 0, an ellipsoid of 0 scales by 1, so the results are the
+// same bits either way.
 vec2 fiber_center_at(vec2 rest, float v, int ring, float curlPhase) {
+#if SHAPE_TWIST
     float tau = shape_twist(v, ring);
     float ct = cos(tau), st = sin(tau);
-    vec2 c = shape_scale(v) * vec2(ct * rest.x - st * rest.y, st * rest.x + ct * rest.y);
+    vec2 c = vec2(ct * rest.x - st * rest.y, st * rest.x + ct * rest.y);
+#else
+    float ct = 1.0, st = 0.0;
+    vec2 c = rest;
+#endif
+#if SHAPE_ELLIPSOID
+    c = shape_scale(v) * c;
+#endif
+#if SHAPE_CURL != 0
     if (sCurlAmplitude > 0.0) {
         float a = TWO_PI * (sCurlFrequency * v + curlPhase);
-        if (sCurlPattern == CURL_HELIX) {
+#if SHAPE_CURL != 2
+        if (SHAPE_CURL == 1 || sCurlPattern == CURL_HELIX) {
             c += sCurlAmplitude * vec2(cos(a), sin(a));
-        } else {
+        }
+#endif
+#if SHAPE_CURL != 1
+        if (SHAPE_CURL == 2 || sCurlPattern != CURL_HELIX) {
             float len = length(c);
             vec2 along = len > 0.0 ? vec2(-c.y, c.x) / len : vec2(1.0, 0.0);
             c += sCurlAmplitude * sin(a) * along;
         }
+#endif
     }
+#endif
+#if SHAPE_FRIZZ
     if (sFrizzAmplitude > 0.0 || sNoiseAmplitude > 0.0) {
         vec2 f = frizz_offset(frizz_of(curlPhase), v);
         c += vec2(ct * f.x - st * f.y, st * f.x + ct * f.y);
     }
+#endif
     return c;
 }
 
@@ -167,7 +190,11 @@ RingPoint ring_point(Segment seg, UnitRay ur, float s, int ring) {
     RingPoint P;
     P.s = s;
     P.v = unit_to_v(seg, ur.O.z + s * ur.D.z);
+#if SHAPE_ELLIPSOID
     P.e = shape_scale(P.v);
+#else
+    P.e = 1.0;
+#endif
     vec2 q = ur.O.xy + s * ur.D.xy;
 #if SHAPE_TWIST
     P.tau = shape_twist(P.v, ring);

@@ -92,6 +92,18 @@ float shaped_reach(int i, Bands b, float rayMin) {
     return uRingB[i].y + shaped_disc(i, b, rayMin) + EPS_ANGLE;
 }
 
+// (cos, sin) of the disc plus EPS_ANGLE, the point stop's turn (traverse_shaped), without a sine or a
+// cosine: the disc is asin(x), so its cosine is sqrt(1 - x^2), and EPS_ANGLE is added by a constant
+// rotation. Rounding moves the angle by ~1e-7, inside the EPS_ANGLE it has to spare. A disc of pi (the
+// chord reaches the fibers' axis side) comes out as x = 1: the stop is off there anyway (reach > 1.5).
+vec2 shaped_turn(int i, Bands b, float rayMin) {
+    float dMin = max(b.eLo * (uRingA[i].x - uRingB[i].x), rayMin);
+    float x = min((sFiberRadius + shape_displacement()) / max(dMin, EPS_DIVISOR), 1.0);
+    vec2 d = vec2(sqrt(max(0.0, (1.0 - x) * (1.0 + x))), x);
+    const vec2 e = vec2(cos(EPS_ANGLE), sin(EPS_ANGLE));
+    return vec2(d.x * e.x - d.y * e.y, d.y * e.x + d.x * e.y);
+}
+
 // The distance from the axis to the chord from a to b.
 float chord_distance(vec2 a, vec2 b) {
     vec2 d = b - a;
@@ -245,6 +257,8 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
         int n = uRingN[i].x;
         sc.found = false;
         pc.P0 = P0;
+        // the angle of the chord's start seen from the axis: each piece's end is the next one's start
+        float thA = atan(P0.p.y, P0.p.x);
         for (int k = 0; k < pieces; k++) {
             gIters++;
             // the last piece ends at b itself: one ring_point with its parameter chosen (a select of two
@@ -263,10 +277,11 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
             // exact: a hit nearer than one on candidate t lies before it on the chord, so its fiber's slot
             // is at most two reaches further on (traverse_straight's rule, with the piece's reach)
             pc.after = gMode == 1 ? int(floor(2.0 * reach * pc.B.z * (1.0 + EPS_AFTER))) + 1 : n;
-            vec2 pA = dot(pc.P0.p, pc.P0.p) > 0.0 ? pc.P0.p : pc.P1.p;
-            vec2 pB = dot(pc.P1.p, pc.P1.p) > 0.0 ? pc.P1.p : pA;
-            float thA = atan(pA.y, pA.x);
-            float span = wrap_pi(atan(pB.y, pB.x) - thA);
+            // (a point on the axis has no angle: a piece that starts there takes its end's, one that ends
+            // there its start's)
+            thA = dot(pc.P0.p, pc.P0.p) > 0.0 ? thA : atan(pc.P1.p.y, pc.P1.p.x);
+            float thB = dot(pc.P1.p, pc.P1.p) > 0.0 ? atan(pc.P1.p.y, pc.P1.p.x) : thA;
+            float span = wrap_pi(thB - thA);
             int dir = gMode == 2 || span >= 0.0 ? 1 : -1;
             pc.dir = dir;
             float first = (thA - float(dir) * reach - pc.A.z) * pc.B.z;
@@ -276,8 +291,8 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
             float sH = clamp(sc.best.s, pc.P0.s, pc.P1.s);
             sc.H = sH >= pc.P1.s ? pc.P1.p : pc.P0.p + ((sH - pc.P0.s) * pc.invLen) * (pc.P1.p - pc.P0.p);
             pc.angled = gMode == 1 && abs(span) + 2.0 * reach < 3.0;
-            float disc = shaped_disc(i, arcBands, rayMin) + EPS_ANGLE;
-            pc.turn = vec2(cos(disc), -float(dir) * sin(disc));
+            vec2 turn = shaped_turn(i, arcBands, rayMin);
+            pc.turn = vec2(turn.x, -float(dir) * turn.y);
 #else
             sc.H = vec2(0.0);
             pc.angled = false;
@@ -330,6 +345,7 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
             bool stop = gMode == 0 ? sc.found : (gMode == 1 && pc.P1.s >= sc.best.s);
             pieces = stop ? k + 1 : pieces;
             pc.P0 = pc.P1;
+            thA = thB;
         }
         if (gMode == 0 && sc.found) break;
     }
