@@ -198,7 +198,8 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
     for (int i = 0; i < K; i++) {
         gIters++;
         vec2 band = ring_band(i, bands);
-        nReached += crs <= sa * band.y ? 1 : 0;
+        if (crs > sa * band.y) break;       // and no deeper ring either (a ring crossed twice is met)
+        nReached++;
         nTwice += crs <= sa * band.x ? 1 : 0;
     }
     nTwice = min(nTwice, nReached);
