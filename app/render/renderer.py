@@ -753,10 +753,10 @@ def draw_ranges(p: Params, scene: Scene, mode: str, rays: int = 1, walks: int = 
     costliest one bounds them); a curved ring on up to two arcs (glsl/fibers/shaped.glsl: going in, coming
     out). Rings are packed into draws greedily, a ring split when it alone is too much. Every bundled layout
     needs one draw; 64 rings of 0.01 degree fibers, or curled fibers whose reach is the whole ring, need
-    several, and the depth test keeps the nearest hit across them as it does in brute mode. The bound holds with the loops after the ring loop
-    (curved: the arcs) in ring order (uRingOrder), which the renderer sets whenever there is more than one
-    draw or ``needs_ring_order``. ``rays``: traversals per invocation; ``walks``: walks through the
-    container hierarchy per invocation (the walk strategy)."""
+    several, and the depth test keeps the nearest hit across them as it does in brute mode. The bound holds
+    with the loops after the ring loop (curved: the arcs) in ring order (uRingOrder), which the renderer sets
+    whenever there is more than one draw or ``needs_ring_order``. ``rays``: traversals per invocation;
+    ``walks``: walks through the container hierarchy per invocation (the walk strategy)."""
     lay = fibers.ring_layout(p)
     total = lay.fibers_per_container
     if mode == "brute":

@@ -45,10 +45,10 @@ const float TWO_PI = 6.28318530718;
 // the top of main). llvmpipe loads a uniform as a gather of eight scalar loads wherever it is read, and the
 // compiler keeps the load beside its use, loops included: ~20 instructions per read per pass of the
 // traversal's loops. Each copy goes through an ALU operation that leaves the value as it is (abs of a
-// value that is never negative; 2 pi T for the signed twist, which shape_twist multiplies by anyway), and
-// an ALU result stays where it is computed. Identical values, so identical fibers.
+// value that is never negative, sign times abs for the twist), and an ALU result stays where it is
+// computed. Identical values in the same expressions, so identical fibers and colours.
 float sEllipsoid = abs(uEllipsoid);
-float sTwistRate = TWO_PI * uTwist;             // 2 pi T, signed
+float sTwist = sign(uTwist) * abs(uTwist);      // the signed twist: sign times size is itself
 float sTwistAbs = abs(uTwist);
 int sTwistPattern = abs(uTwistPattern);
 float sCurlAmplitude = abs(uCurlAmplitude);
@@ -95,7 +95,7 @@ float sNoiseFrequency = abs(uNoiseFrequency);
 float shape_twist(float v, int ring) {
     float t = sTwistPattern == TWIST_RAMPED ? v * v : v;
     float sgn = (sTwistPattern == TWIST_ALTERNATING && (ring & 1) == 1) ? -1.0 : 1.0;
-    return sgn * sTwistRate * t;
+    return sgn * TWO_PI * sTwist * t;
 }
 
 float shape_scale(float v) {
@@ -135,17 +135,13 @@ vec2 frizz_offset(Frizz f, float v) {
 }
 
 // The SHAPE_ defines leave out what the parameters do not use (llvmpipe runs both sides of every branch):
-// a twist of 0 turns by cos 0 = 1 and sin 0 = 0, an ellipsoid of 0 scales by 1, so the results are the
-// same bits either way.
+// an ellipsoid of 0 scales by sqrt(1) = 1, an unused curl or frizz adds nothing, so the results are the
+// same bits either way. (The twist stays: llvmpipe's cos 0 need not be exactly 1, and shading has
+// always turned by it.)
 vec2 fiber_center_at(vec2 rest, float v, int ring, float curlPhase) {
-#if SHAPE_TWIST
     float tau = shape_twist(v, ring);
     float ct = cos(tau), st = sin(tau);
     vec2 c = vec2(ct * rest.x - st * rest.y, st * rest.x + ct * rest.y);
-#else
-    float ct = 1.0, st = 0.0;
-    vec2 c = rest;
-#endif
 #if SHAPE_ELLIPSOID
     c = shape_scale(v) * c;
 #endif

@@ -98,7 +98,8 @@ float shaped_reach(int i, Bands b, float rayMin) {
 // chord reaches the fibers' axis side) comes out as x = 1: the stop is off there anyway (reach > 1.5).
 vec2 shaped_turn(int i, Bands b, float rayMin) {
     float dMin = max(b.eLo * (uRingA[i].x - uRingB[i].x), rayMin);
-    float x = min((sFiberRadius + shape_displacement()) / max(dMin, EPS_DIVISOR), 1.0);
+    float r = sFiberRadius + shape_displacement();
+    float x = dMin > r ? r / dMin : 1.0;                // shaped_disc's quotient: one division for both
     vec2 d = vec2(sqrt(max(0.0, (1.0 - x) * (1.0 + x))), x);
     const vec2 e = vec2(cos(EPS_ANGLE), sin(EPS_ANGLE));
     return vec2(d.x * e.x - d.y * e.y, d.y * e.x + d.x * e.y);
@@ -136,8 +137,6 @@ struct ShapedPiece {
 };
 struct ShapedScan {
     FiberHit best;
-    vec2 bestRest;
-    float bestPhase;
     bool found;         // this arc has improved the best
     int end;            // the candidates to scan: [0, end)
     vec2 H;             // the chord's point at the best hit (or the piece's end while it lies beyond)
@@ -159,8 +158,6 @@ void shaped_candidate(Segment seg, FiberRay fri, ShapedPiece pc, int t, int j, i
     sc.best.ring = better ? pc.ring : sc.best.ring;
     sc.best.fiber = better ? j : sc.best.fiber;
     sc.best.kind = better ? kind : sc.best.kind;
-    sc.bestRest = better ? rest : sc.bestRest;
-    sc.bestPhase = better ? phase : sc.bestPhase;
     sc.found = sc.found || better;
     sc.end = !better ? sc.end : (gMode == 0 ? t : min(sc.end, t + 1 + pc.after));   // fast: the first wins
 #if SHAPED_POINT_STOP
@@ -180,8 +177,6 @@ void shaped_candidate(Segment seg, FiberRay fri, ShapedPiece pc, int t, int j, i
 FiberHit traverse_shaped(Segment seg, UnitRay ur) {
     ShapedScan sc;
     sc.best = no_hit();
-    sc.bestRest = vec2(0.0);
-    sc.bestPhase = 0.0;
     FiberRay fr = fiber_ray(seg, ur);
     Bands bands = segment_bands(seg);
     vec2 o2 = ur.O.xy;
@@ -350,14 +345,23 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
         }
         if (gMode == 0 && sc.found) break;
     }
-    // the hit fiber's centre and how it moves with v, in the container's frame, for shading
+    // the hit fiber's centre and how it moves with v, in the container's frame, for shading. Its rest
+    // position and curl phase are placed again here rather than carried through the scan: every value a
+    // loop carries costs a select and a blend on every pass
     FiberHit best = sc.best;
     bool hit = best.s < INF;
-    float v = unit_to_v(seg, ur.O.z + (hit ? best.s : 0.0) * ur.D.z);
     int ringHit = max(best.ring, 0);
-    best.c = fiber_center_at(sc.bestRest, v, ringHit, sc.bestPhase);
-    best.dcdv = (fiber_center_at(sc.bestRest, v + DCDV_STEP, ringHit, sc.bestPhase)
-               - fiber_center_at(sc.bestRest, v - DCDV_STEP, ringHit, sc.bestPhase)) / (2.0 * DCDV_STEP);
+    int fiberHit = max(best.fiber, 0);
+    uint keyHit = ring_key(sSeed, seg.guide, ringHit);
+    vec2 rest;
+    float vEndUnused;
+    fiber_center_keyed(uRingA[ringHit], uRingB[ringHit], keyHit, ringHit, fiberHit, rest, vEndUnused);
+    rest = hit ? rest : vec2(0.0);
+    float phase = hit ? shaped_curl_phase(keyHit, ringHit, fiberHit) : 0.0;
+    float v = unit_to_v(seg, ur.O.z + (hit ? best.s : 0.0) * ur.D.z);
+    best.c = fiber_center_at(rest, v, ringHit, phase);
+    best.dcdv = (fiber_center_at(rest, v + DCDV_STEP, ringHit, phase)
+               - fiber_center_at(rest, v - DCDV_STEP, ringHit, phase)) / (2.0 * DCDV_STEP);
     return best;
 }
 
