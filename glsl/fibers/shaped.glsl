@@ -220,7 +220,9 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
         float a = max(sA, ur.s0);
         float b = min(sB, ur.s1);
         bool inside = applies && a <= b;
-        if (inside && gMode != 2 && a >= sc.best.s) break;     // arcs come in order of their start
+        // arcs come in order of their start; one that starts at the nearest hit is still visited, since its
+        // fibers may tie there (a ray that starts inside fibers of two rings) and the lower ring wins
+        if (inside && gMode != 2 && a > sc.best.s) break;
         Bands arcBands = bands;
 #if SHAPE_ELLIPSOID
         // The heights the arc spans bound the ellipsoid's scale tighter than the segment's do: the ring's
@@ -311,7 +313,9 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
             // that reach the piece, and only those get the full test. (On the bench's curled scene half of
             // the tests were fibers ending below the ray; for twist or the ellipsoid alone the chunks cost
             // more than they save.) Brute force tests every fiber, as it always did.
-            float vLow = min(pc.P0.v, pc.P1.v) - EPS_V_END;
+            // (piece_entry cuts a fiber only where it ends before the segment does: one that reaches v1 goes on
+            // into the joint's wedge, where the ray's height can pass v1)
+            float vLow = min(min(pc.P0.v, pc.P1.v) - EPS_V_END, seg.v1);
             bool screen = gMode != 2 && vLow > 1.0 - sLengthJitter;
             for (int t0 = 0; t0 < sc.end; t0 += 32) {
                 gIters++;

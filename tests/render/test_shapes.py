@@ -87,6 +87,48 @@ def test_the_length_screen_keeps_every_fiber_and_saves_tests(renderer, monkeypat
     assert screened.cost[..., 3].max() < 65_535
 
 
+# The screen must cut a fiber only where piece_entry does: a fiber that reaches its segment's end v1 goes
+# on into the joint's wedge, where the ray's height passes v1 (bent joints, the tip's jitter range).
+WEDGE = {"scene.generator": "single", "scene.radius": 1.0, "scene.length": 4.0, "scene.segments": 4,
+         "scene.bend": 50.0, "fibers.rings": 4, "fibers.phi_step": 6.0, "fibers.fiber_radius": 0.1,
+         "fibers.length_jitter": 0.7, "shape.curl_amplitude": 0.5, "shape.curl_frequency": 5.0,
+         "shape.curl_pattern": "wave"}
+
+
+@pytest.mark.parametrize("visibility", ["proxies", "walk"])
+def test_the_length_screen_keeps_fibers_that_run_on_into_a_joint(renderer, visibility):
+    p, scene, cam = setup(renderer, {**WEDGE, "quality.visibility": visibility}, {"elevation": 50.0})
+    exact = renderer.render(p, cam, SIZE, outputs=("ids",), mode="exact")
+    brute = renderer.render(p, cam, SIZE, outputs=("ids",), mode="brute")
+    assert exact.hit.sum() > 1000
+    differ = np.any(exact.ids[..., :3] != brute.ids[..., :3], -1).sum()
+    assert differ == 0, f"{differ} pixels differ from brute force"
+
+
+# A ray that starts inside fibers of two rings (camera inside the container, thick curled fibers that
+# overlap) enters both at its start: the same s, so the lower ring wins as in brute force. Arcs that start
+# at the same s (second halves and backs from the ray's start) must all be visited: the arc loop stops only
+# at an arc that starts beyond the nearest hit (main's stopped at one starting at it, and lost such ties).
+INSIDE = {"scene.generator": "single", "scene.radius": 1.0, "scene.length": 4.0, "fibers.rings": 4,
+          "fibers.phi_step": 6.0, "fibers.fiber_radius": 0.12, "shape.curl_amplitude": 0.5,
+          "shape.curl_frequency": 3.0, "fibers.length_jitter": 0.0, "quality.visibility": "proxies"}
+
+
+@pytest.mark.parametrize("eye, target", [((-0.36, 0.66, 2.0), (0.24, 0.7, 1.71)),
+                                         ((-0.51, -0.09, 2.0), (-0.4, -1.32, 1.32))])
+def test_rays_starting_inside_fibers_break_ties_as_brute_force(renderer, eye, target):
+    p = Params(INSIDE)
+    from app.scene.generators import build_scene
+
+    renderer.set_scene(build_scene(p))
+    cam = Camera(list(eye), list(target), 70, 1e-3, 100)
+    exact = renderer.render(p, cam, (96, 72), outputs=("ids",), mode="exact")
+    brute = renderer.render(p, cam, (96, 72), outputs=("ids",), mode="brute")
+    assert exact.hit.all()
+    differ = np.any(exact.ids[..., :3] != brute.ids[..., :3], -1).sum()
+    assert differ == 0, f"{differ} pixels differ from brute force"
+
+
 def test_curved_glsl_matches_float64_reference(renderer):
     assert_matches_reference(renderer, [(values, {"elevation": 25.0}) for values in SHAPES.values()]
                              + [(SCREEN, {"elevation": 60.0})])
