@@ -220,9 +220,11 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
         float a = max(sA, ur.s0);
         float b = min(sB, ur.s1);
         bool inside = applies && a <= b;
-        // arcs come in order of their start; one that starts at the nearest hit is still visited, since its
-        // fibers may tie there (a ray that starts inside fibers of two rings) and the lower ring wins
+        // arcs come in order of their start. One that starts at the nearest hit can only tie it (a ray that
+        // starts inside fibers of two rings enters both at its start), and the lower ring wins a tie: it is
+        // visited if its ring is not above the best's (the arcs after it may still be lower rings)
         if (inside && gMode != 2 && a > sc.best.s) break;
+        inside = inside && (gMode == 2 || a < sc.best.s || i <= sc.best.ring);
         Bands arcBands = bands;
 #if SHAPE_ELLIPSOID
         // The heights the arc spans bound the ellipsoid's scale tighter than the segment's do: the ring's
