@@ -4,7 +4,7 @@ Sections (each a Markdown table, a CSV and pictures in DIR):
   traversal  default preset at 640x360: ms per frame per mode, fiber tests per covered pixel next to the
              rings the ray crosses (the floor an ideal traversal cannot beat), brute / exact ratio
   shapes     straight, curled, twisted, combined fibers (and the other twist and curl patterns) x fast,
-             exact at 640x360 and 1280x720, timed round-robin: ms per frame and tests per covered pixel
+             exact at 640x360 and 1280x720, timed round-robin: ms per frame (wall and CPU) and tests per covered pixel
              beside their ratio to straight, pixels whose fiber differs from brute; the sliders' extremes
              (loop run-out, NaN, exact == brute)
   antialias  none, supersample 2 and 3, MSAA 2 and 4: ms per frame, and stability: pixels whose fiber
@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import csv
 import platform
+import time
 from datetime import date
 from pathlib import Path
 
@@ -148,7 +149,7 @@ def shapes_section(b: Bench, size, out: Path, bar) -> list[dict]:
                 f = r.render(p, cam, sz, outputs=("ids", "cost", "iters", "geom"), mode=mode)
                 covered = f.cost[..., 2] > 0
                 rows.append({"size": f"{sz[0]}x{sz[1]}", "shape": name, "mode": mode,
-                             "ms": timing[name][0], "cv": timing[name][1],
+                             "ms": timing[name][0], "cv": timing[name][1], "cpu_ms": timing[name][2],
                              "tests_per_px": float(f.cost[..., 0][covered].mean()),
                              "max_loop_iters": float(f.iters.max()),
                              "nan": bool(not np.isfinite(f.geom).all()), "_ids": f.ids, "_hit": f.hit})
@@ -168,27 +169,34 @@ def shapes_section(b: Bench, size, out: Path, bar) -> list[dict]:
         base = next(x for x in rows if x["shape"] == "straight" and x["size"] == row["size"]
                     and x["mode"] == row["mode"])
         row["ms_vs_straight"] = row["ms"] / base["ms"]
+        row["cpu_vs_straight"] = row["cpu_ms"] / base["cpu_ms"]
         row["tests_vs_straight"] = row["tests_per_px"] / base["tests_per_px"]
         row["loop_run_out"] = row["max_loop_iters"] >= 65_535
     rows += _shape_extremes(b, (size[0] // 2, size[1] // 2))
     bar.update()
     _save_sheet(sheet, out / "shapes.png")
     _save_sheet(costs, out / "shapes_cost.png")
-    order = ["size", "shape", "mode", "ms", "cv", "ms_vs_straight", "tests_per_px", "tests_vs_straight",
-             "differ_from_brute_pct", "max_loop_iters", "loop_run_out", "nan"]
+    order = ["size", "shape", "mode", "ms", "cv", "ms_vs_straight", "cpu_ms", "cpu_vs_straight", "tests_per_px",
+             "tests_vs_straight", "differ_from_brute_pct", "max_loop_iters", "loop_run_out", "nan"]
     return [{k: r[k] for k in order if k in r} for r in rows]
 
 
 def _round_robin(b: Bench, runs: dict, size, mode: str) -> dict:
-    """(median ms, cv) per run: two warm-up frames each, then b.reps rounds of one frame of every run."""
+    """(median ms, cv, median CPU ms) per run: two warm-up frames each, then b.reps rounds of one frame of
+    every run. The CPU time (time.process_time, which counts llvmpipe's rendering threads) is what to read
+    on a machine others share: the wall clock there counts their work too."""
     samples = {name: [] for name in runs}
+    cpu = {name: [] for name in runs}
     for rep in range(-2, b.reps):
         for name, (p, r, cam) in runs.items():
+            c0 = time.process_time()
             t = time_frames(lambda: r.render(p, cam, size, outputs=("draw",), mode=mode), warmup=0, reps=1,
                             sync=b.ctx.finish)
             if rep >= 0:
                 samples[name] += t.samples_ms
-    return {name: (float(np.median(s)), float(np.std(s) / np.mean(s))) for name, s in samples.items()}
+                cpu[name].append(1e3 * (time.process_time() - c0))
+    return {name: (float(np.median(s)), float(np.std(s) / np.mean(s)), float(np.median(cpu[name])))
+            for name, s in samples.items()}
 
 
 def _shape_extremes(b: Bench, size) -> list[dict]:

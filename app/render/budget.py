@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..fibers import FRIZZ_WIDTH, MAX_SUB, NOISE_WIDTH, Shape, displacement_scale, ring_layout
+from ..fibers import MAX_SUB, Shape, ring_layout
 from ..params import Params
 
 SLOW_SECONDS = 60.0          # above this the command line asks for --allow-slow
@@ -184,9 +184,10 @@ def _fragments(scene, cam, size: tuple[int, int]) -> float:
 def _tests_per_ray(p: Params, scene, mode: str) -> tuple[float, int]:
     lay = ring_layout(p)
     shaped = Shape.from_params(p).curved
-    # the curl's, frizz's and noise's reach together, in ring widths as the curl's was (shape.py)
-    c, z, n = p["shape.curl_amplitude"], p["shape.frizz"], p["shape.noise"]
-    moved = (c + FRIZZ_WIDTH * z + NOISE_WIDTH * n) * displacement_scale(c, z, n)
+    # the curl's, frizz's and noise's reach together, in unit space as the traversal takes it (shape.py:
+    # Shape.displacement; the parameters are ring widths, which this once used as unit space, ten times
+    # the reach on ten rings)
+    moved = Shape.from_params(p).displacement
     passes = CURVED_TEST_PASSES if shaped else 1
     if mode == "brute":
         return float(lay.fibers_per_container) * (2 if shaped else 1), passes

@@ -43,11 +43,14 @@ MAX_RINGS = fibers.MAX_RINGS
 LOOP_CAP = 65_535
 BRUTE_CHUNK = 60_000              # fibers per brute-force draw: stays under LOOP_CAP with 64 rings
 MAX_SUB = fibers.MAX_SUB          # chord pieces per arc of a curved-fiber ring (glsl/fibers/curved.glsl)
-# A ray visits a ring of curved fibers on one or two of three arcs (the first arc, then the second half or
-# the back: glsl/fibers/shaped.glsl), so a batch whose lanes differ may visit it on all three; brute force
-# tests every fiber of its chunk on each of up to MAX_SUB chord pieces of an arc, one pass of the candidate
-# loop each plus each piece's final test. 16 passes per ring pay for the band, arc, piece and canary loops
-# (the chunk is the one the old per-fiber chord loop used, which leaves the piece loops ample room).
+# A ray visits a ring of curved fibers on one or two arcs (going in, coming out: glsl/fibers/shaped.glsl);
+# brute force draws by ring order, so a batch visits each ring on at most two; it tests every fiber of its
+# chunk on each of up to MAX_SUB chord pieces of an arc, one pass of the candidate loop each plus each
+# piece's headers (with curl or frizz three per 32 candidates: SHAPED_SCREEN's chunks). 16 passes per ring
+# pay for the band, arc, piece and canary loops. The chunk is the one the old per-fiber chord loop used
+# (four arcs of MAX_SUB + 2 passes a fiber), which leaves ample room: a ring with m fibers in the draw costs
+# a visit at most MAX_SUB (m (1 + 3/32) + 5) + 1 passes, so two visits of every ring of a full chunk take
+# under 35 per fiber plus 162 per ring, 42,000 at most with MAX_RINGS rings.
 BRUTE_CHUNK_SHAPED = (LOOP_CAP - 16 * MAX_RINGS) // (4 * (MAX_SUB + 2))
 TWIST_PATTERNS, CURL_PATTERNS = fibers.TWIST_PATTERNS, fibers.CURL_PATTERNS
 SHADING_MODELS = {"kajiya_kay": 0, "marschner": 1}
@@ -731,7 +734,24 @@ def _shaped_arc_passes(p: Params, scene: Scene) -> np.ndarray:
     swept = np.floor((sweep + twist) / lay.dphi).astype(np.int64) + MAX_SUB * per_piece
     whole = sweep + piece_turn > 2.5 - 1e-3                 # shaped.glsl: the near-axis chord takes all
     tests = np.where(whole, MAX_SUB * lay.n, np.minimum(MAX_SUB * lay.n, swept))
-    return tests + 2 * MAX_SUB + 1          # each piece's header and its candidate loop's final test
+    return _shaped_visit_passes(tests, screened(p))
+
+
+def screened(p: Params) -> bool:
+    """Whether the shaped traversal screens a piece's candidates by length (glsl/fibers/shaped.glsl:
+    SHAPED_SCREEN, built in with curl, frizz or noise)."""
+    return shape_curl_define(p) != 0 or is_frizzed(p)
+
+
+def _shaped_visit_passes(tests, screen: bool):
+    """Loop passes of one visit of a curved ring's arc that tests at most ``tests`` candidates over its
+    MAX_SUB chord pieces, each piece paying its header and its scan's final test. Screened, a piece's window
+    goes in chunks of 32 candidates, each screened then tested (two passes a candidate) and paying three
+    headers (its own, the screen's and the tests' final one); the pieces have at most tests // 32 + MAX_SUB
+    chunks in all."""
+    if not screen:
+        return tests + 2 * MAX_SUB + 1
+    return 2 * tests + 3 * (tests // 32 + MAX_SUB) + 2 * MAX_SUB + 1
 
 
 def _loop_budget(p: Params, rays: int, walks: int = 0) -> int:
@@ -746,8 +766,11 @@ def _loop_budget(p: Params, rays: int, walks: int = 0) -> int:
 def needs_ring_order(p: Params, scene: Scene, mode: str, rays: int = 1, walks: int = 0) -> bool:
     """Whether one draw of every fiber needs the traversal's loops after the ring loop to go by ring index
     (uRingOrder). Each lane's own order is cheaper, but then lanes of a batch can visit different rings at
-    one iteration, and the batch pays the costliest ring's candidates at every iteration: fronts and
-    first halves by ring, plus up to K times the costliest ring for the loops after (twice for curved)."""
+    one iteration, and the batch pays the costliest of them. Straight: fronts and first halves by ring,
+    plus up to K times the costliest ring for the loops after. Curved (glsl/fibers/shaped.glsl): a lane's
+    arcs go in by ring and come back out, so at pass p every lane is on a ring no deeper than
+    min(p, 2K - 1 - p) and the batch pays at most the costliest ring up to there: twice the sum of the
+    running maximum of the rings' costs."""
     if mode == "brute":
         return False
     caps, per_test = candidate_caps(p, scene)
@@ -755,7 +778,7 @@ def needs_ring_order(p: Params, scene: Scene, mode: str, rays: int = 1, walks: i
     if not is_shaped(p):
         worst = tests.sum() + (p["fibers.rings"] + 1) * tests.max()
     else:
-        worst = 2 * tests.sum() + 2 * p["fibers.rings"] * tests.max()
+        worst = 2 * np.maximum.accumulate(tests).sum()
     return bool(worst > _loop_budget(p, rays, walks))
 
 
@@ -767,13 +790,13 @@ def draw_ranges(p: Params, scene: Scene, mode: str, rays: int = 1, walks: int = 
     Fast and exact test a ring's candidates on each piece of the ray in that ring, at most
     ``candidate_caps`` of them (curved: the loop passes of one arc, all its chord pieces included). A batch
     visits a straight ring on its front and back pieces, and the deepest pieces of its lanes (any ring, the
-    costliest one bounds them); a curved ring on up to three arcs (glsl/fibers/shaped.glsl). Rings are packed
-    into draws greedily, a ring split when it alone is too much. Every bundled layout needs one draw; 64 rings
-    of 0.01 degree fibers, or curled fibers whose reach is the whole ring, need several, and the depth test keeps the
-    nearest hit across them as it does in brute mode. The bound holds with the loops after the ring loop
-    (curved: the arcs) in ring order (uRingOrder), which the renderer sets whenever there is more than one
-    draw or ``needs_ring_order``. ``rays``: traversals per invocation; ``walks``: walks through the
-    container hierarchy per invocation (the walk strategy)."""
+    costliest one bounds them); a curved ring on up to two arcs (glsl/fibers/shaped.glsl: going in, coming
+    out). Rings are packed into draws greedily, a ring split when it alone is too much. Every bundled layout
+    needs one draw; 64 rings of 0.01 degree fibers, or curled fibers whose reach is the whole ring, need
+    several, and the depth test keeps the nearest hit across them as it does in brute mode. The bound holds
+    with the loops after the ring loop (curved: the arcs) in ring order (uRingOrder), which the renderer sets
+    whenever there is more than one draw or ``needs_ring_order``. ``rays``: traversals per invocation;
+    ``walks``: walks through the container hierarchy per invocation (the walk strategy)."""
     lay = fibers.ring_layout(p)
     total = lay.fibers_per_container
     if mode == "brute":
@@ -786,12 +809,14 @@ def draw_ranges(p: Params, scene: Scene, mode: str, rays: int = 1, walks: int = 
     budget = _loop_budget(p, rays, walks)
     shaped = is_shaped(p)
     # per ring: arcs a batch may visit it on; per draw: deepest pieces, at the draw's costliest ring
-    visits, deepest = (2, 2) if not shaped else (3, 0)
+    visits, deepest = (2, 2) if not shaped else (2, 0)
+
+    screen = shaped and screened(p)
 
     def cost(i: int, m: int) -> int:
         """Loop passes of one visit of ring i with m of its fibers in the draw."""
-        if shaped:      # every piece tests at most the share, and pays its header and final test
-            return min(int(caps[i]), MAX_SUB * (m + 2) + 1)
+        if shaped:      # every piece tests at most the share
+            return min(int(caps[i]), int(_shaped_visit_passes(MAX_SUB * m, screen)))
         return per_test * min(m, int(caps[i]))
 
     if (visits + deepest) * cost(0, 1) > budget:
@@ -806,7 +831,10 @@ def draw_ranges(p: Params, scene: Scene, mode: str, rays: int = 1, walks: int = 
                 continue
             # the fibers of this ring that still fit
             if shaped:
-                fit = ((budget - used) // visits - 2 * MAX_SUB - 1) // MAX_SUB
+                fit, over = 0, left                 # the most m with visits * cost(i, m) <= budget - used
+                while over - fit > 1:
+                    mid = (fit + over) // 2
+                    fit, over = (mid, over) if used + visits * cost(i, mid) <= budget else (fit, mid)
             else:
                 fit = (budget - used - deepest * top) // ((visits + deepest) * per_test)
             if fit > 0:

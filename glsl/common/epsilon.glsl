@@ -26,6 +26,10 @@ const float EPS_CHORD = 1e-5;
 // Relative slack on exact mode's count of candidates past an improvement (shaped.glsl), so rounding of
 // 2 reach / dphi never drops the last one.
 const float EPS_AFTER = 1e-6;
+// Guide-parameter slack of the shaped traversal's length screen (shaped.glsl): a fiber is passed over
+// on a chord piece only when it ends this much below the piece's lowest height, far more than the
+// rounding between the piece's heights and piece_entry's length cut.
+const float EPS_V_END = 1e-5;
 // Step in guide parameter of the central difference that gives a curved fiber's dc/dv for shading.
 const float DCDV_STEP = 1e-3;
 // Relative margin on the walk's cut (walk.frag: walk_cut): a container whose bound the ray enters up to

@@ -38,7 +38,8 @@ ivec2 candidate_run(int r, int j0, int dir, int count, int n, ivec2 share) {
 // The t-th candidate of the two runs: one loop over both, so that lanes of one SIMD batch whose runs
 // split differently still cost the batch only the longest lane (llvmpipe's loop budget is per batch).
 int candidate(ivec2 run0, ivec2 run1, int dir, int t) {
-    return t < run0.y ? run0.x + dir * t : run1.x + dir * (t - run0.y);
+    ivec2 run = t < run0.y ? ivec2(run0.x, t) : ivec2(run1.x, t - run0.y);
+    return dir > 0 ? run.x + run.y : run.x - run.y;     // dir is +-1: no vector multiply (llvmpipe's is slow)
 }
 
 #endif

@@ -31,26 +31,29 @@
 #define MAX_SUB 16
 #endif
 
+// the fiber radius as the traversal's loops read it (shape.glsl says why a copy)
+float sFiberRadius = abs(uFiberRadius);
+
 // Pieces for an arc of length L (ray parameter) that climbs dv in guide parameter; sa = |D.xy|.
 // With w = dv / L:  |q''| <= w^2 (r (tau'^2 + tau'') + rho E'' + curl'') + 2 tau' w sa, where r bounds the
 // ray's distance to the axis on the arc, tau' and tau'' the twist's rates (per unit v), rho E'' the
 // ellipsoid's bend (E >= max(eLo, 1/4), as the test has always assumed) and curl'' the curl's.
 int chord_pieces(float L, float dv, float sa, int ring, float eLo) {
     float rho = uRingA[ring].x + uRingB[ring].x;
-    float r = rho + uFiberRadius + shape_displacement();
-    float rate = TWO_PI * abs(uTwist) * (uTwistPattern == TWIST_RAMPED ? 2.0 : 1.0);
-    float rate2 = uTwistPattern == TWIST_RAMPED ? 2.0 * TWO_PI * abs(uTwist) : 0.0;
-    float f = TWO_PI * uCurlFrequency;
-    float curl = uCurlAmplitude * (uCurlPattern == CURL_HELIX ? (f + rate) * (f + rate) + rate2 : f * f);
+    float r = rho + sFiberRadius + shape_displacement();
+    float rate = TWO_PI * sTwistAbs * (sTwistPattern == TWIST_RAMPED ? 2.0 : 1.0);
+    float rate2 = sTwistPattern == TWIST_RAMPED ? 2.0 * TWO_PI * sTwistAbs : 0.0;
+    float f = TWO_PI * sCurlFrequency;
+    float curl = sCurlAmplitude * (sCurlPattern == CURL_HELIX ? (f + rate) * (f + rate) + rate2 : f * f);
     // frizz and noise sway along directions fixed in the ring's frame, as the wave: amplitude times the
     // square of the fastest angular rate (the frizz's frequency strays up to half of frizz from the curl's)
-    float fz = TWO_PI * uCurlFrequency * (1.0 + 0.5 * uFrizz), fn = TWO_PI * uNoiseFrequency;
-    curl = curl + uFrizzAmplitude * fz * fz + uNoiseAmplitude * fn * fn;
-    float ell = rho * 4.0 * uEllipsoid * uEllipsoid / (max(eLo, 0.25) * max(eLo, 0.25) * max(eLo, 0.25));
+    float fz = TWO_PI * sCurlFrequency * (1.0 + 0.5 * sFrizz), fn = TWO_PI * sNoiseFrequency;
+    curl = curl + sFrizzAmplitude * fz * fz + sNoiseAmplitude * fn * fn;
+    float ell = rho * 4.0 * sEllipsoid * sEllipsoid / (max(eLo, 0.25) * max(eLo, 0.25) * max(eLo, 0.25));
     float bendV = r * (rate * rate + rate2) + ell + curl;
     // L^2 |q''| without dividing by L
     float bendL = dv * dv * bendV + 2.0 * rate * dv * L * sa;
-    float n = ceil(sqrt(bendL / (0.8 * max(uFiberRadius, EPS_DIVISOR))));
+    float n = ceil(sqrt(bendL / (0.8 * max(sFiberRadius, EPS_DIVISOR))));
     return int(clamp(n, 1.0, float(MAX_SUB)));
 }
 

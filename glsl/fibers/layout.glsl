@@ -1,5 +1,6 @@
 // layout.glsl: where virtual fibers sit inside a container (thesis 3.3-3.8, 4.3).
 //   void fiber_center(uint guide, int ring, int j, out vec2 c, out float vEnd)
+//   float fiber_v_end(vec4 A, uint ringKey, int ring, int j, float lengthJitter)   where it stops
 // Ring i (0 = outermost) is the annulus [1 - (i+1)/K, 1 - i/K] of unit space. Its n_i fibers sit at angles
 // rot_i + j dphi_i, pushed by a radial and an angular offset that are bounded per ring so that a fiber
 // never leaves its slot; vEnd is where along the guide (0 root .. 1 tip) the fiber stops.
@@ -52,6 +53,12 @@ float fiber_curl_phase(uint guide, int ring, int j) {
 #endif
 }
 
+// Where fiber j of a ring stops along the guide (0 root .. 1 tip): its length random scaled by the length
+// jitter, uLengthJitter (the shaped traversal passes a copy it read once: shape.glsl says why).
+float fiber_v_end(vec4 A, uint ringKey, int ring, int j, float lengthJitter) {
+    return 1.0 - lengthJitter * placement_randoms(A, ringKey, ring, j).z;
+}
+
 // Where fiber j of a ring sits (centre c) and where it stops (vEnd), for a traversal that holds the
 // ring's uniforms A = uRingA[ring], B = uRingB[ring] and its ring key already.
 void fiber_center_keyed(vec4 A, vec4 B, uint ringKey, int ring, int j, out vec2 c, out float vEnd) {
@@ -59,7 +66,7 @@ void fiber_center_keyed(vec4 A, vec4 B, uint ringKey, int ring, int j, out vec2 
     float radius = A.x + (2.0 * u.x - 1.0) * B.x;
     float angle = A.z + float(j) * A.y + (2.0 * u.y - 1.0) * B.y;
     c = radius * vec2(cos(angle), sin(angle));
-    vEnd = 1.0 - uLengthJitter * u.z;
+    vEnd = fiber_v_end(A, ringKey, ring, j, uLengthJitter);
 }
 
 // The same from the guide and ring alone.

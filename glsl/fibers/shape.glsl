@@ -41,6 +41,24 @@ uniform float uNoiseFrequency;  // turns over the guide
 
 const float TWO_PI = 6.28318530718;
 
+// The uniforms as the functions below read them: copied once per invocation (global initialisers run at
+// the top of main). llvmpipe loads a uniform as a gather of eight scalar loads wherever it is read, and the
+// compiler keeps the load beside its use, loops included: ~20 instructions per read per pass of the
+// traversal's loops. Each copy goes through an ALU operation that leaves the value as it is (abs of a
+// value that is never negative, sign times abs for the twist), and an ALU result stays where it is
+// computed. Identical values in the same expressions, so identical fibers and colours.
+float sEllipsoid = abs(uEllipsoid);
+float sTwist = sign(uTwist) * abs(uTwist);      // the signed twist: sign times size is itself
+float sTwistAbs = abs(uTwist);
+int sTwistPattern = abs(uTwistPattern);
+float sCurlAmplitude = abs(uCurlAmplitude);
+float sCurlFrequency = abs(uCurlFrequency);
+int sCurlPattern = abs(uCurlPattern);
+float sFrizz = abs(uFrizz);
+float sFrizzAmplitude = abs(uFrizzAmplitude);
+float sNoiseAmplitude = abs(uNoiseAmplitude);
+float sNoiseFrequency = abs(uNoiseFrequency);
+
 // fallbacks so that the file compiles alone; tests/fibers/test_model.py holds them equal to app.fibers
 #ifndef TWIST_UNIFORM
 #define TWIST_UNIFORM 0
@@ -70,22 +88,25 @@ const float TWO_PI = 6.28318530718;
 #ifndef SHAPE_CURL
 #define SHAPE_CURL 3    // what ring_frame_center builds in: 0 no curl, 1 helix, 2 wave, 3 either (by uniform)
 #endif
+#ifndef SHAPE_ELLIPSOID
+#define SHAPE_ELLIPSOID 1   // 0: built for ellipsoid 0 (every scale is 1)
+#endif
 
 float shape_twist(float v, int ring) {
-    float t = uTwistPattern == TWIST_RAMPED ? v * v : v;
-    float sgn = (uTwistPattern == TWIST_ALTERNATING && (ring & 1) == 1) ? -1.0 : 1.0;
-    return sgn * TWO_PI * uTwist * t;
+    float t = sTwistPattern == TWIST_RAMPED ? v * v : v;
+    float sgn = (sTwistPattern == TWIST_ALTERNATING && (ring & 1) == 1) ? -1.0 : 1.0;
+    return sgn * TWO_PI * sTwist * t;
 }
 
 float shape_scale(float v) {
-    float x = uEllipsoid * (2.0 * v - 1.0);
+    float x = sEllipsoid * (2.0 * v - 1.0);
     return sqrt(max(0.0, 1.0 - x * x));
 }
 
 // The most a fiber's centre moves off its scaled, twisted rest line: the bands, the reach and the chord
 // rule take it (shaped.glsl, curved.glsl). Zeros when frizz and noise are off, so the curl's alone.
 float shape_displacement() {
-    return uCurlAmplitude + uFrizzAmplitude + uNoiseAmplitude;
+    return sCurlAmplitude + sFrizzAmplitude + sNoiseAmplitude;
 }
 
 // Frizz and noise: each fiber sways along its own direction (dir, fixed in the ring's frame, as the wave)
@@ -99,8 +120,8 @@ Frizz frizz_of(float curlPhase) {
     float theta = TWO_PI * key_random(key, CH_FRIZZ_DIR);
     Frizz f;
     f.dir = vec2(cos(theta), sin(theta));
-    f.amp = uFrizzAmplitude * key_random(key, CH_FRIZZ_AMP);
-    f.freq = uCurlFrequency * (1.0 + uFrizz * (key_random(key, CH_FRIZZ_FREQ) - 0.5));
+    f.amp = sFrizzAmplitude * key_random(key, CH_FRIZZ_AMP);
+    f.freq = sCurlFrequency * (1.0 + sFrizz * (key_random(key, CH_FRIZZ_FREQ) - 0.5));
     f.phase = key_random(key, CH_FRIZZ_PHASE);
     f.noisePhase = key_random(key, CH_NOISE_PHASE);
     return f;
@@ -109,28 +130,44 @@ Frizz frizz_of(float curlPhase) {
 // The displacement at height v, in the ring's frame.
 vec2 frizz_offset(Frizz f, float v) {
     float k = f.amp * sin(TWO_PI * (f.freq * v + f.phase));
-    float m = uNoiseAmplitude * sin(TWO_PI * (uNoiseFrequency * v + f.noisePhase));
+    float m = sNoiseAmplitude * sin(TWO_PI * (sNoiseFrequency * v + f.noisePhase));
     return k * f.dir + m * vec2(-f.dir.y, f.dir.x);
 }
 
+// The SHAPE_ defines leave out what the parameters do not use (llvmpipe runs both sides of every branch):
+// an ellipsoid of 0 scales by sqrt(1) = 1, an unused curl or frizz adds nothing, so the results are the
+// same bits either way. (The twist stays: llvmpipe's cos 0 need not be exactly 1, and shading has
+// always turned by it.)
 vec2 fiber_center_at(vec2 rest, float v, int ring, float curlPhase) {
     float tau = shape_twist(v, ring);
     float ct = cos(tau), st = sin(tau);
-    vec2 c = shape_scale(v) * vec2(ct * rest.x - st * rest.y, st * rest.x + ct * rest.y);
-    if (uCurlAmplitude > 0.0) {
-        float a = TWO_PI * (uCurlFrequency * v + curlPhase);
-        if (uCurlPattern == CURL_HELIX) {
-            c += uCurlAmplitude * vec2(cos(a), sin(a));
-        } else {
+    vec2 c = vec2(ct * rest.x - st * rest.y, st * rest.x + ct * rest.y);
+#if SHAPE_ELLIPSOID
+    c = shape_scale(v) * c;
+#endif
+#if SHAPE_CURL != 0
+    if (sCurlAmplitude > 0.0) {
+        float a = TWO_PI * (sCurlFrequency * v + curlPhase);
+#if SHAPE_CURL != 2
+        if (SHAPE_CURL == 1 || sCurlPattern == CURL_HELIX) {
+            c += sCurlAmplitude * vec2(cos(a), sin(a));
+        }
+#endif
+#if SHAPE_CURL != 1
+        if (SHAPE_CURL == 2 || sCurlPattern != CURL_HELIX) {
             float len = length(c);
             vec2 along = len > 0.0 ? vec2(-c.y, c.x) / len : vec2(1.0, 0.0);
-            c += uCurlAmplitude * sin(a) * along;
+            c += sCurlAmplitude * sin(a) * along;
         }
+#endif
     }
-    if (uFrizzAmplitude > 0.0 || uNoiseAmplitude > 0.0) {
+#endif
+#if SHAPE_FRIZZ
+    if (sFrizzAmplitude > 0.0 || sNoiseAmplitude > 0.0) {
         vec2 f = frizz_offset(frizz_of(curlPhase), v);
         c += vec2(ct * f.x - st * f.y, st * f.x + ct * f.y);
     }
+#endif
     return c;
 }
 
@@ -149,7 +186,11 @@ RingPoint ring_point(Segment seg, UnitRay ur, float s, int ring) {
     RingPoint P;
     P.s = s;
     P.v = unit_to_v(seg, ur.O.z + s * ur.D.z);
+#if SHAPE_ELLIPSOID
     P.e = shape_scale(P.v);
+#else
+    P.e = 1.0;
+#endif
     vec2 q = ur.O.xy + s * ur.D.xy;
 #if SHAPE_TWIST
     P.tau = shape_twist(P.v, ring);
@@ -171,7 +212,7 @@ RingPoint ring_point(Segment seg, UnitRay ur, float s, int ring) {
 struct CurlTurn { vec2 h; vec2 w; };    // (cos, sin) of a - tau (helix) and of a (wave)
 
 CurlTurn curl_turn(float curlPhase, RingPoint P) {
-    float a = TWO_PI * (uCurlFrequency * P.v + curlPhase);
+    float a = TWO_PI * (sCurlFrequency * P.v + curlPhase);
     CurlTurn c;
     c.h = vec2(cos(a - P.tau), sin(a - P.tau));
     c.w = vec2(cos(a), sin(a));
@@ -185,7 +226,7 @@ CurlTurn curl_turn(float curlPhase, RingPoint P) {
 
 // (cos, sin) of how far the helix's and the wave's angles advance from P0 to P1: (helix, wave) as a vec4.
 vec4 ring_curl_step(RingPoint P0, RingPoint P1) {
-    float dw = TWO_PI * uCurlFrequency * (P1.v - P0.v);
+    float dw = TWO_PI * sCurlFrequency * (P1.v - P0.v);
     float dh = dw - (P1.tau - P0.tau);
     return vec4(cos(dh), sin(dh), cos(dw), sin(dw));
 }
@@ -206,11 +247,11 @@ vec2 ring_frame_center(vec2 rest, CurlTurn curl, RingPoint P) {
     vec2 wave = curl.w.y * along;
 #endif
 #if SHAPE_CURL == 1
-    c += uCurlAmplitude * curl.h;
+    c += sCurlAmplitude * curl.h;
 #elif SHAPE_CURL == 2
-    c += uCurlAmplitude * wave;
+    c += sCurlAmplitude * wave;
 #else
-    c += uCurlAmplitude * (uCurlPattern == CURL_HELIX ? curl.h : wave);
+    c += sCurlAmplitude * (sCurlPattern == CURL_HELIX ? curl.h : wave);
 #endif
 #endif
     return c;

@@ -6,8 +6,8 @@
 // [inner, outer] that holds its fibers at every height of the segment (bands of neighbouring rings may
 // overlap), and the ray's arcs through the bands are visited in order of where they start: the fronts of
 // the bands crossed twice (outer to inner), the first halves of the bands crossed once (split at the
-// ray's closest approach to the axis), their second halves, then the backs (inner to outer). One loop
-// visits them all, as traverse_straight's does.
+// ray's closest approach to the axis), their second halves (inner to outer, all starting at the closest
+// approach), then the backs (inner to outer). One loop visits them all, as traverse_straight's does.
 // An arc is seen in the frame that turns with its ring's twist (shape.glsl): there the fibers do not
 // turn, and the ray's distance to the axis is what it was, so the bands and arcs are those of the
 // untwisted ring. The arc is cut into chord pieces (curved.glsl: chord_pieces, as many as the ray's climb
@@ -42,10 +42,21 @@
 #define SHAPE_ELLIPSOID 1   // 0: built for ellipsoid 0 (the bands of the segment are the arc's)
 #endif
 
-// Exact mode's stop at the best hit's point (in traverse_shaped) pays where the displacement widens the
-// windows (curl, frizz, noise: 10% fewer fiber tests on the bench's curled scene); for twist or the
-// ellipsoid alone its per-candidate test cost more than it saved (docs/shaped-traversal.md).
+// Exact mode's stop at the best hit's point and the length screen (in traverse_shaped) pay where the
+// displacement widens the windows (curl, frizz, noise: 10% and 40% fewer fiber tests on the bench's curled
+// scene); for twist or the ellipsoid alone their per-candidate work cost more than it saved
+// (docs/shaped-traversal.md).
 #define SHAPED_POINT_STOP (SHAPE_CURL != 0 || SHAPE_FRIZZ)
+#ifndef SHAPED_SCREEN
+#define SHAPED_SCREEN (SHAPE_CURL != 0 || SHAPE_FRIZZ)   // a define of 0 turns it off (the tests compare)
+#endif
+
+// The layout's uniforms the loops below read, copied once per invocation (shape.glsl says why): the
+// seed and the fiber ranges are never negative, so abs leaves them as they are.
+uint sSeed = uint(abs(int(uSeed)));
+ivec2 sFiberRange = abs(uFiberRange);
+ivec2 sBruteRange = abs(uBruteRange);
+float sLengthJitter = abs(uLengthJitter);
 
 struct Bands { float eLo; float eHi; };
 
@@ -61,7 +72,7 @@ Bands segment_bands(Segment seg) {
 
 vec2 ring_band(int i, Bands b) {
     float rho = uRingA[i].x, dr = uRingB[i].x;
-    float grow = uFiberRadius + shape_displacement() + EPS_BAND;
+    float grow = sFiberRadius + shape_displacement() + EPS_BAND;
     return vec2(max(0.0, b.eLo * (rho - dr) - grow), b.eHi * (rho + dr) + grow);
 }
 
@@ -73,12 +84,25 @@ vec2 ring_band(int i, Bands b) {
 // where the disc alone would take the whole ring.
 float shaped_disc(int i, Bands b, float rayMin) {
     float dMin = max(b.eLo * (uRingA[i].x - uRingB[i].x), rayMin);
-    float r = uFiberRadius + shape_displacement();
+    float r = sFiberRadius + shape_displacement();
     return dMin > r ? asin(r / dMin) : 3.14159265359;
 }
 
 float shaped_reach(int i, Bands b, float rayMin) {
     return uRingB[i].y + shaped_disc(i, b, rayMin) + EPS_ANGLE;
+}
+
+// (cos, sin) of the disc plus EPS_ANGLE, the point stop's turn (traverse_shaped), without a sine or a
+// cosine: the disc is asin(x), so its cosine is sqrt(1 - x^2), and EPS_ANGLE is added by a constant
+// rotation. Rounding moves the angle by ~1e-7, inside the EPS_ANGLE it has to spare. A disc of pi (the
+// chord reaches the fibers' axis side) comes out as x = 1: the stop is off there anyway (reach > 1.5).
+vec2 shaped_turn(int i, Bands b, float rayMin) {
+    float dMin = max(b.eLo * (uRingA[i].x - uRingB[i].x), rayMin);
+    float r = sFiberRadius + shape_displacement();
+    float x = dMin > r ? r / dMin : 1.0;                // shaped_disc's quotient: one division for both
+    vec2 d = vec2(sqrt(max(0.0, (1.0 - x) * (1.0 + x))), x);
+    const vec2 e = vec2(cos(EPS_ANGLE), sin(EPS_ANGLE));
+    return vec2(d.x * e.x - d.y * e.y, d.y * e.x + d.x * e.y);
 }
 
 // The distance from the axis to the chord from a to b.
@@ -98,8 +122,61 @@ float shaped_curl_phase(uint ringKey, int ring, int j) {
 #endif
 }
 
+// A chord piece as its candidates see it, and what its scan carries from one candidate to the next.
+struct ShapedPiece {
+    RingPoint P0, P1;
+    float invLen;       // 1 / (P1.s - P0.s), 0 for a piece of no length
+    vec4 curlStep;      // ring_curl_step(P0, P1)
+    vec4 A, B;          // the ring's uniforms
+    uint ringKey;
+    int ring;
+    int after;          // exact: candidates past an improvement that can still be nearer
+    int dir;            // +1 or -1: the order of the slots along the sweep
+    vec2 turn;          // (cos, sin) that turns a rest direction back by the disc, against dir
+    bool angled;        // the point stop may compare angles (they lie within half a turn)
+};
+struct ShapedScan {
+    FiberHit best;
+    bool found;         // this arc has improved the best
+    int end;            // the candidates to scan: [0, end)
+    vec2 H;             // the chord's point at the best hit (or the piece's end while it lies beyond)
+};
+
+// Candidate t (fiber j) of a piece: its test, the best hit, and exact mode's and fast mode's stops.
+void shaped_candidate(Segment seg, FiberRay fri, ShapedPiece pc, int t, int j, inout ShapedScan sc) {
+    gTests++;
+    vec2 rest;
+    float vEndUnused;
+    fiber_center_keyed(pc.A, pc.B, pc.ringKey, pc.ring, j, rest, vEndUnused);
+    float vEnd = fiber_v_end(pc.A, pc.ringKey, pc.ring, j, sLengthJitter);
+    float phase = shaped_curl_phase(pc.ringKey, pc.ring, j);
+    int kind;
+    float s = piece_entry(seg, fri, pc.P0, pc.P1, pc.invLen, pc.curlStep, rest, phase, vEnd, kind);
+    s = pc.ring == gSkipRing && j == gSkipFiber ? INF : s;
+    bool better = beats(s, pc.ring, j, sc.best.s, sc.best.ring, sc.best.fiber);
+    sc.best.s = better ? s : sc.best.s;
+    sc.best.ring = better ? pc.ring : sc.best.ring;
+    sc.best.fiber = better ? j : sc.best.fiber;
+    sc.best.kind = better ? kind : sc.best.kind;
+    sc.found = sc.found || better;
+    sc.end = !better ? sc.end : (gMode == 0 ? t : min(sc.end, t + 1 + pc.after));   // fast: the first wins
+#if SHAPED_POINT_STOP
+    // exact: a hit nearer than the best so far lies on this chord before the best's point H (the piece's
+    // end while the best lies beyond it). A fiber is hit only where the chord comes within the disc of
+    // its rest position, so where its rest direction, turned back by the disc, lies past H (seen from
+    // the axis, along the sweep), it and every later slot (the jitter keeps the rest directions in slot
+    // order) are hit after H, if at all: the scan stops there. Valid while the angles compared stay
+    // within half a turn of each other.
+    sc.H = better ? pc.P0.p + ((s - pc.P0.s) * pc.invLen) * (pc.P1.p - pc.P0.p) : sc.H;
+    vec2 back = vec2(pc.turn.x * rest.x - pc.turn.y * rest.y, pc.turn.y * rest.x + pc.turn.x * rest.y);
+    bool beyond = pc.angled && float(pc.dir) * (sc.H.x * back.y - sc.H.y * back.x) > 0.0;
+    sc.end = beyond ? min(sc.end, t + 1) : sc.end;
+#endif
+}
+
 FiberHit traverse_shaped(Segment seg, UnitRay ur) {
-    FiberHit best = no_hit();
+    ShapedScan sc;
+    sc.best = no_hit();
     FiberRay fr = fiber_ray(seg, ur);
     Bands bands = segment_bands(seg);
     vec2 o2 = ur.O.xy;
@@ -116,24 +193,23 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
     for (int i = 0; i < K; i++) {
         gIters++;
         vec2 band = ring_band(i, bands);
-        nReached += crs <= sa * band.y ? 1 : 0;
+        if (crs > sa * band.y) break;       // and no deeper ring either (a ring crossed twice is met)
+        nReached++;
         nTwice += crs <= sa * band.x ? 1 : 0;
     }
     nTwice = min(nTwice, nReached);
-    // By ring (uRingOrder): arcs 0..K-1 are the first arcs of rings 0..K-1, K..2K-1 the second halves of
-    // rings 0..K-1, 2K..3K-1 the backs of rings K-1..0, so every lane of a SIMD batch visits the same ring
-    // at the same iteration (renderer.py: draw_ranges). Else each lane's own arcs, in its order.
-    bool byRing = uRingOrder != 0;
-    int arcs = byRing ? 3 * K : 2 * nReached;
-    vec2 bestRest = vec2(0.0);
-    float bestPhase = 0.0;
+    // The arcs of a lane: its fronts and first halves by ring going in (ring p at pass p < m), then its
+    // second halves and backs by ring going back out (ring 2m - 1 - p), m = nReached. The second halves all
+    // start at the closest approach, so their order is free; going out puts every lane at pass p on a ring
+    // no deeper than min(p, 2K - 1 - p), which is what bounds a batch's loop passes with each lane in its
+    // own order (renderer.py: needs_ring_order). By ring (uRingOrder): m = K in every lane, so every lane of
+    // a SIMD batch visits the same ring at the same pass and each ring at most twice (draw_ranges).
+    int m = uRingOrder != 0 ? K : nReached;
+    int arcs = 2 * m;
     for (int p = 0; p < arcs; p++) {
         gIters++;
-        int q = byRing ? p - K : p - nReached;          // index in the second group
-        int side = byRing ? (p < K ? 0 : (p < 2 * K ? 1 : 2))
-                          : (p < nReached ? 0 : (q < nReached - nTwice ? 1 : 2));
-        int i = byRing ? (side == 0 ? p : (side == 1 ? q : 3 * K - 1 - p))
-                       : (side == 0 ? p : (side == 1 ? nTwice + q : nReached - 1 - q));
+        int i = p < m ? p : arcs - 1 - p;
+        int side = p < m ? 0 : (i < nTwice ? 2 : 1);
         bool twice = i < nTwice;
         bool applies = i < nReached && (side == 0 || (side == 1) != twice);
         vec2 band = ring_band(i, bands);
@@ -144,7 +220,11 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
         float a = max(sA, ur.s0);
         float b = min(sB, ur.s1);
         bool inside = applies && a <= b;
-        if (inside && gMode != 2 && a >= best.s) break;     // arcs come in order of their start
+        // arcs come in order of their start. One that starts at the nearest hit can only tie it (a ray that
+        // starts inside fibers of two rings enters both at its start), and the lower ring wins a tie: it is
+        // visited if its ring is not above the best's (the arcs after it may still be lower rings)
+        if (inside && gMode != 2 && a > sc.best.s) break;
+        inside = inside && (gMode == 2 || a < sc.best.s || i <= sc.best.ring);
         Bands arcBands = bands;
 #if SHAPE_ELLIPSOID
         // The heights the arc spans bound the ellipsoid's scale tighter than the segment's do: the ring's
@@ -161,56 +241,62 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
         b = min(b, side == 0 ? innerT.x : outerT.y);
         inside = inside && a <= b;
 #endif
-        ivec2 share = ring_share(i, gMode == 2 ? uBruteRange : uFiberRange);
+        ivec2 share = ring_share(i, gMode == 2 ? sBruteRange : sFiberRange);
         bool open = inside && share.x < share.y;            // else none of this ring's fibers is in this draw
         gPieces += open ? 1 : 0;
         RingPoint P0 = ring_point(seg, ur, a, i);
         RingPoint Pb = ring_point(seg, ur, b, i);
         int pieces = open ? chord_pieces(b - a, abs(Pb.v - P0.v), sa, i, arcBands.eLo) : 0;
         float step = (b - a) / float(max(pieces, 1));
-        vec4 ring = uRingA[i];
-        vec4 ringB = uRingB[i];
-        uint ringKey = ring_key(uSeed, seg.guide, i);
+        ShapedPiece pc;
+        pc.A = uRingA[i];
+        pc.B = uRingB[i];
+        pc.ringKey = ring_key(sSeed, seg.guide, i);
+        pc.ring = i;
         FiberRay fri = fiber_ray_ring(fr, i);           // this ring's fiber radius
         int n = uRingN[i].x;
-        bool found = false;
+        sc.found = false;
+        pc.P0 = P0;
+        // the angle of the chord's start seen from the axis: each piece's end is the next one's start
+        float thA = atan(P0.p.y, P0.p.x);
         for (int k = 0; k < pieces; k++) {
             gIters++;
             // the last piece ends at b itself: one ring_point with its parameter chosen (a select of two
             // points would run both, and a piece's point costs a division, a root and, twisted, a sine)
-            RingPoint P1 = ring_point(seg, ur, k == pieces - 1 ? b : a + float(k + 1) * step, i);
-            float invLen = P1.s > P0.s ? 1.0 / (P1.s - P0.s) : 0.0;
+            pc.P1 = ring_point(seg, ur, k == pieces - 1 ? b : a + float(k + 1) * step, i);
+            pc.invLen = pc.P1.s > pc.P0.s ? 1.0 / (pc.P1.s - pc.P0.s) : 0.0;
 #if SHAPE_CURL != 0
-            vec4 curlStep = ring_curl_step(P0, P1);
+            pc.curlStep = ring_curl_step(pc.P0, pc.P1);
 #else
-            vec4 curlStep = vec4(0.0);
+            pc.curlStep = vec4(0.0);
 #endif
             // the candidates: slots within the reach of the angles the piece sweeps (a chord never
             // sweeps half a turn or more: past 2.5 radians it passes so near the axis that all are taken)
-            float rayMin = chord_distance(P0.p, P1.p) * (1.0 - EPS_CHORD);
+            float rayMin = chord_distance(pc.P0.p, pc.P1.p) * (1.0 - EPS_CHORD);
             float reach = shaped_reach(i, arcBands, rayMin);
             // exact: a hit nearer than one on candidate t lies before it on the chord, so its fiber's slot
             // is at most two reaches further on (traverse_straight's rule, with the piece's reach)
-            int after = gMode == 1 ? int(floor(2.0 * reach * ringB.z * (1.0 + EPS_AFTER))) + 1 : n;
-            vec2 pA = dot(P0.p, P0.p) > 0.0 ? P0.p : P1.p;
-            vec2 pB = dot(P1.p, P1.p) > 0.0 ? P1.p : pA;
-            float thA = atan(pA.y, pA.x);
-            float span = wrap_pi(atan(pB.y, pB.x) - thA);
+            pc.after = gMode == 1 ? int(floor(2.0 * reach * pc.B.z * (1.0 + EPS_AFTER))) + 1 : n;
+            // (a point on the axis has no angle: a piece that starts there takes its end's, one that ends
+            // there its start's)
+            thA = dot(pc.P0.p, pc.P0.p) > 0.0 ? thA : atan(pc.P1.p.y, pc.P1.p.x);
+            float thB = dot(pc.P1.p, pc.P1.p) > 0.0 ? atan(pc.P1.p.y, pc.P1.p.x) : thA;
+            float span = wrap_pi(thB - thA);
             int dir = gMode == 2 || span >= 0.0 ? 1 : -1;
-            float first = (thA - float(dir) * reach - ring.z) * ringB.z;
-            float last = (thA + span + float(dir) * reach - ring.z) * ringB.z;
+            pc.dir = dir;
+            float first = (thA - float(dir) * reach - pc.A.z) * pc.B.z;
+            float last = (thA + span + float(dir) * reach - pc.A.z) * pc.B.z;
 #if SHAPED_POINT_STOP
-            // exact: a hit nearer than the best so far lies on this chord before the best's point H (the
-            // piece's end while the best lies beyond it). A fiber is hit only where the chord comes within
-            // the disc of its rest position, so where its rest direction, turned back by the disc, lies
-            // past H (seen from the axis, along the sweep), it and every later slot (the jitter keeps the
-            // rest directions in slot order) are hit after H, if at all: the scan stops there. Valid while
-            // the angles compared stay within half a turn of each other.
-            float sH = clamp(best.s, P0.s, P1.s);
-            vec2 H = sH >= P1.s ? P1.p : P0.p + ((sH - P0.s) * invLen) * (P1.p - P0.p);
-            bool angled = gMode == 1 && abs(span) + 2.0 * reach < 3.0;
-            float disc = shaped_disc(i, arcBands, rayMin) + EPS_ANGLE;
-            vec2 turn = vec2(cos(disc), -float(dir) * sin(disc));
+            // exact: the best's point on this chord (shaped_candidate says what stops there)
+            float sH = clamp(sc.best.s, pc.P0.s, pc.P1.s);
+            sc.H = sH >= pc.P1.s ? pc.P1.p : pc.P0.p + ((sH - pc.P0.s) * pc.invLen) * (pc.P1.p - pc.P0.p);
+            pc.angled = gMode == 1 && abs(span) + 2.0 * reach < 3.0;
+            vec2 turn = shaped_turn(i, arcBands, rayMin);
+            pc.turn = vec2(turn.x, -float(dir) * turn.y);
+#else
+            sc.H = vec2(0.0);
+            pc.angled = false;
+            pc.turn = vec2(1.0, 0.0);
 #endif
             int j0 = dir > 0 ? int(ceil(first)) : int(floor(first));
             int j1 = dir > 0 ? int(floor(last)) : int(ceil(last));
@@ -219,50 +305,69 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
             count = gMode == 2 ? n : count;
             ivec2 run0 = candidate_run(0, j0, dir, count, n, share);
             ivec2 run1 = candidate_run(1, j0, dir, count, n, share);
-            int end = run0.y + run1.y;
-            // the scan's rules (skip, tie order, fast/exact stop) as traverse_straight's: straight.glsl
-            // says why the two loops are apart; change both together
-            for (int t = 0; t < end; t++) {
+            sc.end = run0.y + run1.y;
+            // The scan's rules (skip, tie order, fast/exact stop) as traverse_straight's: straight.glsl
+            // says why the two loops are apart; change both together.
+#if SHAPED_SCREEN
+            // The window goes in chunks of 32 slots. Fibers that end below the whole piece cannot be hit on
+            // it (piece_entry's length cut), and where the piece climbs above 1 - length jitter some of them
+            // do: there a cheap pass over the chunk (the length random: two hash rounds) marks the fibers
+            // that reach the piece, and only those get the full test. (On the bench's curled scene half of
+            // the tests were fibers ending below the ray; for twist or the ellipsoid alone the chunks cost
+            // more than they save.) Brute force tests every fiber, as it always did.
+            // (piece_entry cuts a fiber only where it ends before the segment does: one that reaches v1 goes on
+            // into the joint's wedge, where the ray's height can pass v1)
+            float vLow = min(min(pc.P0.v, pc.P1.v) - EPS_V_END, seg.v1);
+            bool screen = gMode != 2 && vLow > 1.0 - sLengthJitter;
+            for (int t0 = 0; t0 < sc.end; t0 += 32) {
                 gIters++;
-                gTests++;
-                int j = candidate(run0, run1, dir, t);
-                vec2 rest;
-                float vEnd;
-                fiber_center_keyed(ring, ringB, ringKey, i, j, rest, vEnd);
-                float phase = shaped_curl_phase(ringKey, i, j);
-                int kind;
-                float s = piece_entry(seg, fri, P0, P1, invLen, curlStep, rest, phase, vEnd, kind);
-                s = i == gSkipRing && j == gSkipFiber ? INF : s;
-                bool better = beats(s, i, j, best.s, best.ring, best.fiber);
-                best.s = better ? s : best.s;
-                best.ring = better ? i : best.ring;
-                best.fiber = better ? j : best.fiber;
-                best.kind = better ? kind : best.kind;
-                bestRest = better ? rest : bestRest;
-                bestPhase = better ? phase : bestPhase;
-                found = found || better;
-                end = !better ? end : (gMode == 0 ? t : min(end, t + 1 + after));   // fast: the first wins
-#if SHAPED_POINT_STOP
-                H = better ? P0.p + ((s - P0.s) * invLen) * (P1.p - P0.p) : H;
-                vec2 back = vec2(turn.x * rest.x - turn.y * rest.y, turn.y * rest.x + turn.x * rest.y);
-                bool beyond = angled && float(dir) * (H.x * back.y - H.y * back.x) > 0.0;
-                end = beyond ? min(end, t + 1) : end;
-#endif
+                int width = min(32, sc.end - t0);
+                uint reaches = 0u;
+                for (int u = 0; u < (screen ? width : 0); u++) {
+                    gIters++;
+                    int j = candidate(run0, run1, dir, t0 + u);
+                    reaches |= fiber_v_end(pc.A, pc.ringKey, i, j, sLengthJitter) >= vLow ? 1u << u : 0u;
+                }
+                uint live = screen ? reaches : (width >= 32 ? 0xffffffffu : (1u << width) - 1u);
+                while (live != 0u) {
+                    gIters++;
+                    int t = t0 + findLSB(live);
+                    live &= live - 1u;
+                    shaped_candidate(seg, fri, pc, t, candidate(run0, run1, dir, t), sc);
+                    live = t + 1 >= sc.end ? 0u : live;
+                }
             }
+#else
+            for (int t = 0; t < sc.end; t++) {
+                gIters++;
+                shaped_candidate(seg, fri, pc, t, candidate(run0, run1, dir, t), sc);
+            }
+#endif
             // exact: no later piece can start before the nearest hit; fast: stop at the first
-            bool stop = gMode == 0 ? found : (gMode == 1 && P1.s >= best.s);
+            bool stop = gMode == 0 ? sc.found : (gMode == 1 && pc.P1.s >= sc.best.s);
             pieces = stop ? k + 1 : pieces;
-            P0 = P1;
+            pc.P0 = pc.P1;
+            thA = thB;
         }
-        if (gMode == 0 && found) break;
+        if (gMode == 0 && sc.found) break;
     }
-    // the hit fiber's centre and how it moves with v, in the container's frame, for shading
+    // the hit fiber's centre and how it moves with v, in the container's frame, for shading. Its rest
+    // position and curl phase are placed again here rather than carried through the scan: every value a
+    // loop carries costs a select and a blend on every pass
+    FiberHit best = sc.best;
     bool hit = best.s < INF;
-    float v = unit_to_v(seg, ur.O.z + (hit ? best.s : 0.0) * ur.D.z);
     int ringHit = max(best.ring, 0);
-    best.c = fiber_center_at(bestRest, v, ringHit, bestPhase);
-    best.dcdv = (fiber_center_at(bestRest, v + DCDV_STEP, ringHit, bestPhase)
-               - fiber_center_at(bestRest, v - DCDV_STEP, ringHit, bestPhase)) / (2.0 * DCDV_STEP);
+    int fiberHit = max(best.fiber, 0);
+    uint keyHit = ring_key(sSeed, seg.guide, ringHit);
+    vec2 rest;
+    float vEndUnused;
+    fiber_center_keyed(uRingA[ringHit], uRingB[ringHit], keyHit, ringHit, fiberHit, rest, vEndUnused);
+    rest = hit ? rest : vec2(0.0);
+    float phase = hit ? shaped_curl_phase(keyHit, ringHit, fiberHit) : 0.0;
+    float v = unit_to_v(seg, ur.O.z + (hit ? best.s : 0.0) * ur.D.z);
+    best.c = fiber_center_at(rest, v, ringHit, phase);
+    best.dcdv = (fiber_center_at(rest, v + DCDV_STEP, ringHit, phase)
+               - fiber_center_at(rest, v - DCDV_STEP, ringHit, phase)) / (2.0 * DCDV_STEP);
     return best;
 }
 

@@ -157,7 +157,11 @@ def test_ring_order_only_where_the_budget_is_tight(renderer):
     for preset in bundled_presets():
         p = preset.params
         assert not needs_ring_order(p, build_scene(p), "exact", traversals_per_fragment(p, "exact")), preset.name
-    p = Params({"scene.count": 4, "shape.curl_amplitude": 0.3, "scene.segments": 4})
+    # the rings' costs fall inwards here (even spacing thins the inner rings; a twist near 4.2 turns makes
+    # the outer rings' chords sweep far), so a lane coming back out could pay the outer rings' cost at
+    # every pass: by ring it is
+    p = Params({"scene.count": 4, "fibers.even_spacing": 1.0, "fibers.phi_step": 0.5, "shape.twist": 4.2,
+                "shape.curl_amplitude": 0.3})
     scene = build_scene(p)
     assert needs_ring_order(p, scene, "exact")
     renderer.set_scene(scene)
@@ -168,3 +172,26 @@ def test_ring_order_only_where_the_budget_is_tight(renderer):
     brute = renderer.render(p, cam, (48, 32), outputs=("ids",), mode="brute")
     assert exact.hit.sum() > 100 and exact.iters.max() < LOOP_CAP
     assert (exact.ids[..., :3] == brute.ids[..., :3]).all()
+
+
+def test_curved_lanes_in_their_own_order_stay_within_the_budget(renderer, monkeypatch):
+    """Curved fibers: a lane's arcs go in by ring and come back out (glsl/fibers/shaped.glsl), so at pass p
+    no lane is deeper than ring min(p, 2K - 1 - p) and the bound is twice the sum of the rings' running
+    maximum cost. The curled scene of the shapes bench needed the by-ring order under the old bound (the
+    innermost ring can take its whole ring on every chord piece) and no longer does; both orders find
+    brute force's fibers, and no loop runs out."""
+    from app.render.renderer import needs_ring_order
+    from app.scene.generators import build_scene
+
+    p = Params({"scene.count": 4, "shape.curl_amplitude": 0.35, "shape.curl_frequency": 6.0})
+    scene = build_scene(p)
+    assert not needs_ring_order(p, scene, "exact")
+    renderer.set_scene(scene)
+    cam = Camera.from_params(p.replace(**{"camera.elevation": 60.0}), scene, 1.5)   # caps: many pieces
+    own = renderer.render(p, cam, (48, 32), outputs=("ids", "iters"), mode="exact")
+    brute = renderer.render(p, cam, (48, 32), outputs=("ids",), mode="brute")
+    monkeypatch.setattr(renderer_module, "needs_ring_order", lambda *a, **k: True)
+    by_ring = renderer.render(p, cam, (48, 32), outputs=("ids", "iters"), mode="exact")
+    assert own.hit.sum() > 100 and own.iters.max() < LOOP_CAP and by_ring.iters.max() < LOOP_CAP
+    assert (own.ids[..., :3] == brute.ids[..., :3]).all()
+    assert (by_ring.ids[..., :3] == brute.ids[..., :3]).all()

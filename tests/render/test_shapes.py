@@ -62,8 +62,76 @@ def test_the_stop_at_the_best_point_keeps_exact_equal_to_brute(renderer, shape, 
     assert exact.cost[..., 3].max() < 65_535
 
 
+# The length screen (shaped.glsl: SHAPED_SCREEN) passes over fibers that end below a whole chord piece:
+# long length jitter, curled fibers, seen across the tips and from above them.
+SCREEN = {**POINT_STOP, "fibers.length_jitter": 0.7, "shape.curl_amplitude": 0.4, "shape.curl_frequency": 6.0}
+
+
+@pytest.mark.parametrize("elevation", [10.0, 60.0])
+def test_the_length_screen_keeps_every_fiber_and_saves_tests(renderer, monkeypatch, elevation):
+    import app.render.renderer as renderer_module
+
+    p, scene, cam = setup(renderer, SCREEN, {"elevation": elevation})
+    screened = renderer.render(p, cam, SIZE, outputs=("ids", "cost"), mode="exact")
+    brute = renderer.render(p, cam, SIZE, outputs=("ids",), mode="brute")
+    defines = renderer_module.model_defines
+    monkeypatch.setattr(renderer_module, "model_defines", lambda *a, **k: {**defines(*a, **k), "SHAPED_SCREEN": 0})
+    plain = renderer.render(p, cam, SIZE, outputs=("ids", "cost"), mode="exact")
+    assert screened.hit.sum() > 300
+    differ = np.any(screened.ids[..., :3] != brute.ids[..., :3], -1).sum()
+    assert differ == 0, f"elevation {elevation}: {differ} pixels differ from brute force"
+    assert (plain.ids == screened.ids).all()
+    covered = screened.cost[..., 2] > 0
+    tests, unscreened = screened.cost[..., 0][covered].sum(), plain.cost[..., 0][covered].sum()
+    assert tests < 0.8 * unscreened, f"the screen left {tests} of {unscreened} fiber tests"
+    assert screened.cost[..., 3].max() < 65_535
+
+
+# The screen must cut a fiber only where piece_entry does: a fiber that reaches its segment's end v1 goes
+# on into the joint's wedge, where the ray's height passes v1 (bent joints, the tip's jitter range).
+WEDGE = {"scene.generator": "single", "scene.radius": 1.0, "scene.length": 4.0, "scene.segments": 4,
+         "scene.bend": 50.0, "fibers.rings": 4, "fibers.phi_step": 6.0, "fibers.fiber_radius": 0.1,
+         "fibers.length_jitter": 0.7, "shape.curl_amplitude": 0.5, "shape.curl_frequency": 5.0,
+         "shape.curl_pattern": "wave"}
+
+
+@pytest.mark.parametrize("visibility", ["proxies", "walk"])
+def test_the_length_screen_keeps_fibers_that_run_on_into_a_joint(renderer, visibility):
+    p, scene, cam = setup(renderer, {**WEDGE, "quality.visibility": visibility}, {"elevation": 50.0})
+    exact = renderer.render(p, cam, SIZE, outputs=("ids",), mode="exact")
+    brute = renderer.render(p, cam, SIZE, outputs=("ids",), mode="brute")
+    assert exact.hit.sum() > 1000
+    differ = np.any(exact.ids[..., :3] != brute.ids[..., :3], -1).sum()
+    assert differ == 0, f"{differ} pixels differ from brute force"
+
+
+# A ray that starts inside fibers of two rings (camera inside the container, thick curled fibers that
+# overlap) enters both at its start: the same s, so the lower ring wins as in brute force. Arcs that start
+# at the same s (second halves and backs from the ray's start) must all be visited: the arc loop stops only
+# at an arc that starts beyond the nearest hit (main's stopped at one starting at it, and lost such ties).
+INSIDE = {"scene.generator": "single", "scene.radius": 1.0, "scene.length": 4.0, "fibers.rings": 4,
+          "fibers.phi_step": 6.0, "fibers.fiber_radius": 0.12, "shape.curl_amplitude": 0.5,
+          "shape.curl_frequency": 3.0, "fibers.length_jitter": 0.0, "quality.visibility": "proxies"}
+
+
+@pytest.mark.parametrize("eye, target", [((-0.36, 0.66, 2.0), (0.24, 0.7, 1.71)),
+                                         ((-0.51, -0.09, 2.0), (-0.4, -1.32, 1.32))])
+def test_rays_starting_inside_fibers_break_ties_as_brute_force(renderer, eye, target):
+    p = Params(INSIDE)
+    from app.scene.generators import build_scene
+
+    renderer.set_scene(build_scene(p))
+    cam = Camera(list(eye), list(target), 70, 1e-3, 100)
+    exact = renderer.render(p, cam, (96, 72), outputs=("ids",), mode="exact")
+    brute = renderer.render(p, cam, (96, 72), outputs=("ids",), mode="brute")
+    assert exact.hit.all()
+    differ = np.any(exact.ids[..., :3] != brute.ids[..., :3], -1).sum()
+    assert differ == 0, f"{differ} pixels differ from brute force"
+
+
 def test_curved_glsl_matches_float64_reference(renderer):
-    assert_matches_reference(renderer, [(values, {"elevation": 25.0}) for values in SHAPES.values()])
+    assert_matches_reference(renderer, [(values, {"elevation": 25.0}) for values in SHAPES.values()]
+                             + [(SCREEN, {"elevation": 60.0})])
 
 
 def test_twisted_fibers_have_twisted_tangents(renderer):
