@@ -45,6 +45,10 @@ MOVE_PX = 0.1                   # the camera move, in pixels
 REFERENCE_N = 16                # reference rays per pixel: REFERENCE_N x REFERENCE_N
 GAMMA = 2.2                     # the renderer's display transform (glsl/shading/light.glsl): pow(c, 1/2.2)
 FAR_FUR_DISTANCE = 8.0          # fur-ball camera distance: its fibers ~0.3 px wide at 180 px high
+# the curled scene: the far fur-ball's fibers curled (a helix of 0.35 ring widths, 6 turns root to tip) and
+# twisted half a turn, as the twisted-curled-1 preset winds its rope
+CURLED = {"shape.curl_amplitude": 0.35, "shape.curl_frequency": 6.0, "shape.curl_pattern": "helix",
+          "shape.twist": 0.5}
 TARGET_STABILITY_PCT = 10.0     # issue 16's targets for the filtered mode
 TARGET_COST = 3.0
 
@@ -62,7 +66,8 @@ MODES: dict[str, tuple[dict, int]] = {
     "filtered 0.6 px": ({"quality.filter": "coverage", "quality.filter_width": 0.6}, 0),   # sharper, less still
 }
 FILTERED = "filtered"
-SCENES = ("default", "fur-ball far", "sintel_hair.tfx")
+SCENES = ("default", "fur-ball far", "sintel_hair.tfx", "fur-ball curled")
+GROOM_SUFFIXES = (".tfx", ".data", ".hair", ".ply")     # a shared groom by its file name (load_subject)
 
 
 # --- metrics (pure numpy: tests/bench/test_antialias_bench.py holds them to known answers) -------------------
@@ -132,7 +137,9 @@ def load_subject(ctx, programs, name: str, size) -> Subject:
         p = find_preset("default").params
     elif name == "fur-ball far":
         p = find_preset("fur-ball").params.replace(**{"camera.distance": FAR_FUR_DISTANCE})
-    elif name.endswith(".tfx"):
+    elif name == "fur-ball curled":
+        p = find_preset("fur-ball").params.replace(**{"camera.distance": FAR_FUR_DISTANCE, **CURLED})
+    elif (HAIR_DATA / name).suffix in GROOM_SUFFIXES:
         path = HAIR_DATA / name
         if not path.exists():
             raise FileNotFoundError(f"{path}: shared hair data not found (tests and benches expect "
@@ -292,6 +299,7 @@ def contact_sheet(per_scene: list[tuple[str, dict, str]], path: Path, zoom: int 
 
 
 TURN_DEGREES = 0.5     # turntable_change: two frames of a 720-frame turn
+TURNTABLE_SCENE = "sintel_hair.tfx"
 
 
 def turntable_change(s: Subject, size, path: Path) -> None:
@@ -392,7 +400,7 @@ def run(size=(320, 180), reps: int = 5, scenes=SCENES, ref_n: int = REFERENCE_N,
             print(f"{name}: {time.perf_counter() - t:.0f} s", flush=True)
             rows += r
             per_scene.append((name, pics, best_mode(r)))
-            if out is not None and name == SCENES[-1] and FILTERED in MODES:
+            if out is not None and name == TURNTABLE_SCENE and FILTERED in MODES:
                 out.mkdir(parents=True, exist_ok=True)
                 turntable_change(s, size, out / "turntable_change.png")
             s.renderer.release_targets()
@@ -422,7 +430,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m app.bench.antialias", description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="160x90, 8x8 reference, 2 timed pictures")
     ap.add_argument("--size", type=_size, default=None, help="image size WxH (default 320x180)")
-    ap.add_argument("--scene", action="append", choices=SCENES, help="repeatable (default: all three)")
+    ap.add_argument("--scene", action="append", choices=SCENES, help="repeatable (default: all four)")
     ap.add_argument("--out", type=Path, default=Path("docs/bench/antialias"))
     args = ap.parse_args(argv)
     size = args.size or ((160, 90) if args.quick else (320, 180))
