@@ -533,7 +533,7 @@ def footprint_coverage(x, r, w):
 # The shader's constants (#define there; tests/render/test_filter.py holds them equal).
 COVER_OPAQUE = 0.03
 COVER_MEDIUM_FROM = 1.5
-COVER_MEDIUM_FULL = 3.0
+COVER_MEDIUM_FULL = 2.5
 COVER_TENT_MIN = 0.01
 
 

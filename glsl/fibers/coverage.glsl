@@ -54,7 +54,7 @@
 #define COVER_MEDIUM_FROM 1.5
 #endif
 #ifndef COVER_MEDIUM_FULL
-#define COVER_MEDIUM_FULL 3.0
+#define COVER_MEDIUM_FULL 2.5
 #endif
 #ifndef COVER_LIGHT_NODES
 #define COVER_LIGHT_NODES 5  // cover_medium: points across an arc at which the medium takes the key light's path

@@ -193,50 +193,42 @@ def test_glsl_medium_matches_numpy(ctx, rho, n, rf):
     assert np.allclose(v[..., 3], reference.exp_mean(4.0, 0.1, 0.1 + d), rtol=2e-4, atol=1e-6)
 
 
-# --- the blend from the scan into the medium: a dolly across the switch ------------------------------------
-def _dolly_steps(renderer, p, scene, distances):
-    """Per step of the dolly, the change of the mean colour over the pixels the filter covers past half."""
-    means = []
-    for dist in distances:
-        q = p.replace(**{"camera.distance": float(dist)})
-        cam = Camera.from_params(q, scene, aspect=SIZE[0] / SIZE[1])
-        f = renderer.render(q, cam, SIZE, outputs=("color",))
-        means.append(f.color[f.coverage > 0.5].astype(np.float64).mean())
-    return np.abs(np.diff(means))
+# --- the blend from the scan into the medium: no step where one becomes the other ---------------------------
+def _footprint_wu(p, scene, cam):
+    """The filter's footprint half-width in container radii at the scene's centre."""
+    dist = float(np.linalg.norm(np.asarray(cam.position, np.float64) - np.asarray(cam.target, np.float64)))
+    pixel = 2.0 * math.tan(math.radians(cam.fov) / 2) / SIZE[1]
+    return p["quality.filter_width"] * pixel * dist / float(np.median(scene.segments[:, 3]))
 
 
-def test_dolly_across_the_switch_has_no_step(renderer, monkeypatch):
-    """One container (the straight preset: every fiber switches at the same distance) dollies out from
-    where it is scanned (its footprint well under COVER_MEDIUM_FROM fiber spacings) to where it is a medium
-    (well past COVER_MEDIUM_FULL), 50 steps. The blended dolly's largest step of the mean colour stays within
-    what the scan alone and the medium alone do over the same dolly (a dolly moves the picture anyway); a
-    switch from one to the other at one distance measured 7.8 levels here, against 3.4 and 4.2 alone)."""
-    p = find_preset("straight").params.replace(**{"quality.supersample": 1, "quality.msaa": 0, **ON})
+def test_widening_footprint_crosses_the_switch_without_a_step(renderer):
+    """One container (the straight preset: all its fibers switch together), camera still, the footprint
+    widened from well under COVER_MEDIUM_FROM fiber spacings to well past COVER_MEDIUM_FULL in 60 steps: the
+    picture blurs step by step, and no step changes it much more than the steps beside it. A switch from
+    the scan to the medium at one width measured a step of 6.1 levels, 8.5 times its neighbours' (this
+    blend: 1.6 and 1.5 times; the scan alone 1.3 and 2.0). docs/antialias.md has the dolly across the
+    switch on the fur-ball."""
+    p = find_preset("straight").params.replace(**{"quality.supersample": 1, "quality.msaa": 0,
+                                                   "camera.distance": 10.0, **ON})
     scene = build_scene(p)
     renderer.set_scene(scene)
-    distances = np.geomspace(4.0, 40.0, 50)
-    lay = fibers.ring_layout(p)
-    assert reference.medium_weight(_footprint_wu(p, scene, distances[0]), lay.fibers_per_container) == 0.0
-    assert reference.medium_weight(_footprint_wu(p, scene, distances[-1]), lay.fibers_per_container) == 1.0
-    blended = _dolly_steps(renderer, p, scene, distances)
-    import app.render.renderer as rmod
-    defines = rmod.model_defines
-    alone = {}
-    for name, band in (("scan", (1e9, 2e9)), ("medium", (0.0, 1e-6))):
-        monkeypatch.setattr(rmod, "model_defines", lambda q, mode, cost, band=band: {
-            **defines(q, mode, cost), "COVER_MEDIUM_FROM": band[0], "COVER_MEDIUM_FULL": band[1]})
-        alone[name] = _dolly_steps(renderer, p, scene, distances)
-    monkeypatch.setattr(rmod, "model_defines", defines)
-    bound = max(alone["scan"].max(), alone["medium"].max())
-    assert blended.max() <= 1.3 * bound + 0.5, (blended.max(), bound)
-
-
-def _footprint_wu(p, scene, dist):
-    """The filter's footprint half-width in container radii at the scene's centre from ``dist``."""
-    cam = Camera.from_params(p.replace(**{"camera.distance": float(dist)}), scene, aspect=SIZE[0] / SIZE[1])
-    pixel = 2.0 * math.tan(math.radians(cam.fov) / 2) / SIZE[1]
-    radius = float(np.median(scene.segments[:, 3]))
-    return p["quality.filter_width"] * pixel * float(dist) / radius
+    cam = Camera.from_params(p, scene, aspect=SIZE[0] / SIZE[1])
+    n = fibers.ring_layout(p).fibers_per_container
+    widths = np.geomspace(0.3, 4.0, 60)
+    assert reference.medium_weight(_footprint_wu(p.replace(**{"quality.filter_width": 0.3}), scene, cam), n) == 0
+    assert reference.medium_weight(_footprint_wu(p.replace(**{"quality.filter_width": 4.0}), scene, cam), n) == 1
+    steps, prev = [], None
+    for w in widths:
+        f = renderer.render(p.replace(**{"quality.filter_width": float(w)}), cam, SIZE, outputs=("color",))
+        c = f.color.astype(np.float64)
+        if prev is not None:
+            covered = (f.coverage > 0) | (prev[1] > 0)
+            steps.append(np.abs(c - prev[0]).max(-1)[covered].mean())
+        prev = (c, f.coverage)
+    steps = np.array(steps)
+    beside = np.array([np.median(np.delete(steps[max(0, k - 3):k + 4], min(k, 3))) for k in range(len(steps))])
+    assert steps.max() < 3.0, np.round(steps, 2)
+    assert (steps / np.maximum(beside, 1e-3)).max() < 3.0, np.round(steps, 2)
 
 
 def test_cover_light_path_reaches_the_wall():
