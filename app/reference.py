@@ -532,8 +532,8 @@ def footprint_coverage(x, r, w):
 # --- the filtered mode's medium (glsl/fibers/coverage.glsl: ring_fence .. cover_medium) --------------------
 # The shader's constants (#define there; tests/render/test_filter.py holds them equal).
 COVER_OPAQUE = 0.03
-COVER_MEDIUM_FROM = 1.5
-COVER_MEDIUM_FULL = 2.5
+COVER_MEDIUM_FROM = 12.0
+COVER_MEDIUM_FULL = 20.0
 COVER_TENT_MIN = 0.01
 
 
@@ -591,10 +591,10 @@ def ring_fence_mean(f: Fence) -> float:
     return float(np.clip((f.g1s + f.rho - f.ys) / max(f.rho, 1e-30), 0.0, 1.0))
 
 
-def medium_weight(wu, fibers: int):
-    """0 (scan the fibers) .. 1 (a medium), by the footprint's half-width wu in mean fiber spacings
-    sqrt(pi / fibers): GLSL smoothstep(COVER_MEDIUM_FROM, COVER_MEDIUM_FULL, .)."""
-    x = np.asarray(wu, np.float64) * math.sqrt(fibers / math.pi)
+def medium_weight(wu, fibers: int, rings: int):
+    """0 (scan the fibers) .. 1 (a medium), by the fiber slots the footprint (half-width wu) spans on a mean
+    ring, fibers / rings slots around radius 1/2: GLSL smoothstep(COVER_MEDIUM_FROM, COVER_MEDIUM_FULL, .)."""
+    x = 2.0 * np.asarray(wu, np.float64) * fibers / (math.pi * max(rings, 1))
     t = np.clip((x - COVER_MEDIUM_FROM) / (COVER_MEDIUM_FULL - COVER_MEDIUM_FROM), 0.0, 1.0)
     return t * t * (3.0 - 2.0 * t)
 

@@ -3,7 +3,7 @@
 //   float footprint_coverage(float x, float r, float w)   share of a tent footprint a fiber covers
 //   bool  to_unit_space_dilated(Segment seg, vec3 rd, float tNear, out UnitRay ur, out float wu)
 //   Fence ring_fence(rho, n, rf); float ring_fence_cover(Fence f, float d, float w)   a ring as a medium
-//   float medium_weight(float wu, float fibers)           0: scan the fibers .. 1: a medium
+//   float medium_weight(float wu, float fibers, float rings)   0: scan the fibers .. 1: a medium
 //   CoverBlend cover_container(Segment seg, UnitRay ur, float wu, vec3 Lu, vec2 density)   one container's
 //              fibers, blended (Lu: the key light in the container's frame; density: the self-shadow
 //              estimate's fibers per unit path, 0 without, and the occlusion strength)
@@ -14,12 +14,12 @@
 // inner to outer) and composited front to back until the footprint is opaque (cover_scan); where it holds
 // many, the container is a medium: each ring's expected share of the footprint, in closed form
 // (cover_medium), so its cost no longer grows with the fibers a footprint holds; in between the two are
-// blended by the footprint's width in fiber spacings (medium_weight), so a dolly sees no step. Either way
+// blended by the fibers a footprint spans per ring (medium_weight), so a dolly sees no step. Either way
 // the shading inputs (centre, normal, tint, roughness, depth, light, occlusion) are averaged with the
 // composite's weights and shaded once (stages/walk.frag): shading each fiber would cost a shading per
 // covering fiber, several times the frame (docs/antialias.md says what was measured). Ids and depth stay
 // the exact traversal's (traverse.glsl); this only colours. Curved fibers (SHAPED) are taken at the height
-// where the ray crosses each ring (arc_shape). Twins: app/reference.py (footprint_coverage, the fence,
+// where the ray crosses each ring (arc_shape), their curl and frizz as a wider footprint. Twins: app/reference.py (footprint_coverage, the fence,
 // medium_weight, exp_mean, medium_alpha); OSL has none: Cycles filters by its own sampling.
 
 #include "common/epsilon.glsl"
@@ -48,13 +48,15 @@
 #ifndef COVER_OPAQUE
 #define COVER_OPAQUE 0.03   // transmittance at which the scan stops (see cover_container: alpha)
 #endif
-// Where a container becomes a medium (medium_weight): the footprint's half-width in mean fiber spacings
-// at which the medium starts to blend in, and at which it has replaced the scan.
+// Where a container becomes a medium (medium_weight): the fiber slots of a mean ring the footprint spans
+// at which the medium starts to blend in, and at which it has replaced the scan. The scan thins past
+// COVER_SAMPLES slots a ring visit; from twice that its cost grows with the slots while the medium's is
+// fixed per ring, and both agree on the error there (docs/antialias.md).
 #ifndef COVER_MEDIUM_FROM
-#define COVER_MEDIUM_FROM 1.5
+#define COVER_MEDIUM_FROM 12.0
 #endif
 #ifndef COVER_MEDIUM_FULL
-#define COVER_MEDIUM_FULL 2.5
+#define COVER_MEDIUM_FULL 20.0
 #endif
 #ifndef COVER_LIGHT_NODES
 #define COVER_LIGHT_NODES 5  // cover_medium: points across an arc at which the medium takes the key light's path
@@ -165,11 +167,11 @@ float ring_fence_mean(Fence f) {
     return clamp((f.g1s + f.rho - f.ys) / max(f.rho, EPS_DIVISOR), 0.0, 1.0);
 }
 
-// How far a container is a medium: 0 (scan its fibers) to 1 (a medium), by the footprint's half-width wu
-// in mean fiber spacings sqrt(pi / fibers) of the unit disc, smooth in between, so the camera's distance
-// blends the one into the other without a step.
-float medium_weight(float wu, float fibers) {
-    return smoothstep(COVER_MEDIUM_FROM, COVER_MEDIUM_FULL, wu * sqrt(fibers / 3.14159265));
+// How far a container is a medium: 0 (scan its fibers) to 1 (a medium), by the fiber slots the footprint
+// (half-width wu) spans on a mean ring: fibers / rings slots around the ring halfway out (radius 1/2),
+// smooth in between, so the camera's distance blends the one into the other without a step.
+float medium_weight(float wu, float fibers, float rings) {
+    return smoothstep(COVER_MEDIUM_FROM, COVER_MEDIUM_FULL, 2.0 * wu * fibers / (3.14159265 * max(rings, 1.0)));
 }
 
 // What one container's fibers do to a footprint: alpha = 1 - their transmittance, and the weighted means
@@ -281,15 +283,15 @@ vec2 cover_light(vec2 q, vec2 c, vec2 l2, float ll, vec2 density) {
 }
 
 // Curved fibers (SHAPED: ellipsoid, twist, curl, frizz): the shape of ring i where the ray crosses the
-// ring's radius rho on one side of its closest approach (the arc's height v): the ellipsoid's scale, the
-// twist, and the most the curl and frizz move a fiber. The scan and the medium take each fiber there as the
-// vertical line through its centre at that height: exact where the ray crosses the container square to its
-// axis (one height), and off by the centre's change over the ray's rise across the footprint otherwise.
+// ring's radius rho on one side of its closest approach (the arc's height v): the ellipsoid's scale and the
+// twist there. The scan and the medium take each fiber as the vertical line through its scaled, turned rest
+// position at that height: exact where the ray crosses the container square to its axis (one height), off
+// by the rest line's turn over the ray's rise across the footprint otherwise. The curl and frizz sway a
+// fiber about that line (cover_container widens the footprint by their spread instead of following them).
 struct ArcShape {
     float v;
     float e;        // ellipsoid: every ring's radius times e
     float tau;      // twist: the ring's pattern turned by tau about the axis
-    float disp;     // curl, frizz and noise: each fiber within disp of its scaled, turned rest line
 };
 
 ArcShape arc_shape(Segment seg, UnitRay ur, RayPath rp, float rho, bool back, int ring) {
@@ -300,12 +302,10 @@ ArcShape arc_shape(Segment seg, UnitRay ur, RayPath rp, float rho, bool back, in
     a.v = unit_to_v(seg, ur.O.z + clamp(s, ur.s0, ur.s1) * ur.D.z);
     a.e = shape_scale(a.v);
     a.tau = shape_twist(a.v, ring);
-    a.disp = shape_displacement();
 #else
     a.v = 0.0;
     a.e = 1.0;
     a.tau = 0.0;
-    a.disp = 0.0;
 #endif
     return a;
 }
@@ -326,8 +326,7 @@ CoverSums cover_scan(Segment seg, UnitRay ur, RayPath rp, float wu, vec2 l2, vec
     int K = uRings;
     // the deepest ring the grown footprint can reach (one ring of slack for the rings' radial jitter): a
     // ray past a container's edge visits only its outer rings
-    int deep = clamp(int((1.0 - rp.dist + wu + uFiberRadius + (SHAPED != 0 ? shape_displacement() : 0.0))
-                         * float(K)) + 1, 0, K - 1);
+    int deep = clamp(int((1.0 - rp.dist + wu + uFiberRadius) * float(K)) + 1, 0, K - 1);
     for (int p = 0; p < (on ? 2 * deep + 2 : 0); p++) {
         bool back = p > deep;
         int i = back ? 2 * deep + 1 - p : p;
@@ -336,8 +335,8 @@ CoverSums cover_scan(Segment seg, UnitRay ur, RayPath rp, float wu, vec2 l2, vec
         float rf = uRingRadius[i];
         ArcShape sh = arc_shape(seg, ur, rp, ring.x, back, i);
         // the ring's fibre centres lie in [rMin, rMax]
-        float rMin = max(sh.e * (ring.x - ringB.x) - sh.disp, 0.0);
-        float rMax = sh.e * (ring.x + ringB.x) + sh.disp;
+        float rMin = max(sh.e * (ring.x - ringB.x), 0.0);
+        float rMax = sh.e * (ring.x + ringB.x);
         float rOut = rMax + rf + wu;
         float rIn = max(rMin - rf - wu, 0.0);
         float hOut = sqrt(max(0.0, (rOut - rp.dist) * (rOut + rp.dist)));
@@ -347,7 +346,7 @@ CoverSums cover_scan(Segment seg, UnitRay ur, RayPath rp, float wu, vec2 l2, vec
         float psiB = back ? atan(hOut, rp.dist) : atan(-hIn, rp.dist);
         // the slots a fiber within the footprint can have: the arc's angles, the ring's reach, and the
         // angle the footprint and the fiber's radius subtend at the ring's innermost centre
-        float grow = (rf + wu + sh.disp) < rMin ? asin((rf + wu + sh.disp) / rMin) : 3.14159265;
+        float grow = (rf + wu) < rMin ? asin((rf + wu) / rMin) : 3.14159265;
         float reach = ring.w + grow + EPS_ANGLE;
         int n = uRingN[i].x;
         int dir = int(rp.sigma);
@@ -380,7 +379,7 @@ CoverSums cover_scan(Segment seg, UnitRay ur, RayPath rp, float wu, vec2 l2, vec
             float vEnd;
             fiber_center_keyed(ring, ringB, ringKey, i, j, c, vEnd);
 #if SHAPED
-            c = fiber_center_at(c, sh.v, i, fiber_curl_phase(seg.guide, i, j));
+            c = sh.e * vec2(cos(sh.tau) * c.x - sin(sh.tau) * c.y, sin(sh.tau) * c.x + cos(sh.tau) * c.y);
 #endif
             vec2 oc = ur.O.xy - c;
             float s = -dot(oc, d2) * invA;                  // closest approach to the fiber's axis
@@ -433,8 +432,7 @@ CoverSums cover_medium(Segment seg, UnitRay ur, RayPath rp, float wu, vec2 l2, v
     float d = rp.dist;
     float open = 1.0;                                   // what the front arcs so far let through
     // curved fibers: the rings scaled by the ellipsoid where the ray passes closest to the axis; the twist
-    // turns a ring into itself, and the curl and frizz move its fibers about it (by up to sh.disp, which
-    // the medium leaves out: it keeps the ring's density)
+    // turns a ring into itself
     ArcShape sh = arc_shape(seg, ur, rp, 0.0, false, 0);
     int K = uRings;
     for (int i = 0; i < (on ? K : 0); i++) {
@@ -524,7 +522,15 @@ CoverBlend cover_container(Segment seg, UnitRay ur, float wu, vec3 Lu, vec2 dens
     // a ray along the axis sees the fibers end on: no footprint across them; leave it to the exact colour
     bool any = ur.s0 <= ur.s1 && uFiberRadius > 0.0 && rp.sa > 0.0 && uCoverOn != 0;
     ivec2 last = uRingN[uRings - 1];
-    float medium = medium_weight(wu, float(last.x + last.y));
+    float medium = medium_weight(wu, float(last.x + last.y), float(uRings));
+#if SHAPED
+    // the curl and frizz sway each fiber about its rest line, across the footprint by up to the
+    // displacement: a helix's sway spreads as A^2 / 2, the tent's as w^2 / 6, and the footprint seen by a
+    // swaying fiber is taken as the tent of their summed spread (the fiber's mean over its sway, so a ray
+    // that meets a fiber at another height of its turn sees the same share)
+    float disp = shape_displacement();
+    wu = sqrt(wu * wu + 3.0 * disp * disp);
+#endif
     int tests = 0;
     CoverSums scan = cover_scan(seg, ur, rp, min(wu, COVER_WU_MAX), Lu.xy, density, any && medium < 1.0, tests);
     CoverSums med = cover_medium(seg, ur, rp, wu, Lu.xy, density, any && medium > 0.0, tests);

@@ -118,13 +118,13 @@ def test_medium_hides_inner_rings_behind_closed_fences():
 
 
 def test_medium_weight_and_exp_mean():
-    n = 3600
-    spacing = math.sqrt(math.pi / n)
-    assert reference.medium_weight(1.0 * spacing, n) == 0.0
-    assert reference.medium_weight(10.0 * spacing, n) == 1.0
-    lam = np.linspace(0, 5, 501)
-    b = reference.medium_weight(lam * spacing, n)
-    assert (np.diff(b) >= 0).all() and np.abs(np.diff(b)).max() < 0.02, "smooth, rising"
+    n, k = 3600, 10
+    slot = math.pi / (n / k)                             # a mean ring's slot, halfway out: pi / (n / k) ...
+    assert reference.medium_weight(0.5 * 11.0 * slot, n, k) == 0.0      # ... so wu = slots / 2 * slot
+    assert reference.medium_weight(0.5 * 21.0 * slot, n, k) == 1.0
+    slots = np.linspace(0, 30, 601)
+    b = reference.medium_weight(0.5 * slots * slot, n, k)
+    assert (np.diff(b) >= 0).all() and np.abs(np.diff(b)).max() < 0.01, "smooth, rising"
     # exp_mean: the mean of exp over a linear path, against the trapezoid rule; the limits
     p = np.linspace(0.2, 1.7, 100001)
     assert reference.exp_mean(5.0, 0.2, 1.7) == pytest.approx(np.exp(-5.0 * p).mean(), rel=1e-4)
@@ -146,7 +146,7 @@ void main() {
     Fence f = ring_fence(uRho, uN, uRf);
     float p1 = 0.1 + d;
     float e0 = exp(-4.0 * 0.1), e1 = exp(-4.0 * p1);
-    outValue = vec4(ring_fence_cover(f, d, w), ring_fence_mean(f), medium_weight(w, uN),
+    outValue = vec4(ring_fence_cover(f, d, w), ring_fence_mean(f), medium_weight(w, uN, uRings),
                     exp_mean(4.0, 0.1, p1, e0, e1));
 }
 """
@@ -162,10 +162,11 @@ def test_glsl_medium_matches_numpy(ctx, rho, n, rf):
         (tmp / "glsl" / "fullscreen.vert").write_text((GLSL_HARNESS / "fullscreen.vert").read_text())
         prog = ProgramCache(tmp / "glsl").get(ctx, "fullscreen.vert", "medium_harness.frag")
         prog["uRho"].value, prog["uN"].value, prog["uRf"].value = rho, n, rf
-        # the footprint where the medium starts to blend in (medium_weight): COVER_MEDIUM_FROM fiber spacings
-        # of a container of n fibers a ring
-        start = reference.COVER_MEDIUM_FROM * math.sqrt(math.pi / n)
+        # the footprint where the medium starts to blend in (medium_weight): COVER_MEDIUM_FROM slots of a
+        # container of n fibers in 4 rings
+        start = 0.5 * reference.COVER_MEDIUM_FROM * math.pi / (n / 4)
         prog["uFrom"].value = start
+        prog["uRings"].value = 4
         W, H = 64, 64
         tex = ctx.texture((W, H), 4, dtype="f4")
         fbo = ctx.framebuffer([tex])
@@ -189,7 +190,7 @@ def test_glsl_medium_matches_numpy(ctx, rho, n, rf):
     assert err[40:].max() < 1e-3, err[40:].max()
     assert err.max() < 5e-2, err.max()          # below it (never used there): no blow-up
     assert np.allclose(v[..., 1], reference.ring_fence_mean(f), atol=5e-4)      # llvmpipe asin: ~1e-4
-    assert np.allclose(v[..., 2], reference.medium_weight(w, n), atol=1e-5)
+    assert np.allclose(v[..., 2], reference.medium_weight(w, n, 4), atol=1e-5)
     assert np.allclose(v[..., 3], reference.exp_mean(4.0, 0.1, 0.1 + d), rtol=2e-4, atol=1e-6)
 
 
@@ -202,21 +203,22 @@ def _footprint_wu(p, scene, cam):
 
 
 def test_widening_footprint_crosses_the_switch_without_a_step(renderer):
-    """One container (the straight preset: all its fibers switch together), camera still, the footprint
-    widened from well under COVER_MEDIUM_FROM fiber spacings to well past COVER_MEDIUM_FULL in 60 steps: the
-    picture blurs step by step, and no step changes it much more than the steps beside it. A switch from
-    the scan to the medium at one width measured a step of 6.1 levels, 8.5 times its neighbours' (this
-    blend: 1.6 and 1.5 times; the scan alone 1.3 and 2.0). docs/antialias.md has the dolly across the
-    switch on the fur-ball."""
+    """One container (the straight preset with 72 fibers a ring: all of them switch together), camera still,
+    the footprint widened from under COVER_MEDIUM_FROM fiber slots to past COVER_MEDIUM_FULL in 60 steps:
+    the picture blurs step by step, and no step changes it much more than the steps beside it. A switch
+    from the scan to the medium at one width measured a step of 11.6 levels, 15 times its neighbours'; this
+    blend 2.9 and 4.9 times, where the scan alone steps as much (3.1, 4.9: its thinning doubling)."""
     p = find_preset("straight").params.replace(**{"quality.supersample": 1, "quality.msaa": 0,
-                                                   "camera.distance": 10.0, **ON})
+                                                   "camera.distance": 10.0, "fibers.phi_step": 5.0, **ON})
     scene = build_scene(p)
     renderer.set_scene(scene)
     cam = Camera.from_params(p, scene, aspect=SIZE[0] / SIZE[1])
-    n = fibers.ring_layout(p).fibers_per_container
-    widths = np.geomspace(0.3, 4.0, 60)
-    assert reference.medium_weight(_footprint_wu(p.replace(**{"quality.filter_width": 0.3}), scene, cam), n) == 0
-    assert reference.medium_weight(_footprint_wu(p.replace(**{"quality.filter_width": 4.0}), scene, cam), n) == 1
+    lay = fibers.ring_layout(p)
+    n, k = lay.fibers_per_container, lay.rings
+    widths = np.geomspace(0.25, 4.0, 60)
+    for width, weight in ((0.25, 0.0), (4.0, 1.0)):
+        wu = _footprint_wu(p.replace(**{"quality.filter_width": width}), scene, cam)
+        assert reference.medium_weight(wu, n, k) == weight
     steps, prev = [], None
     for w in widths:
         f = renderer.render(p.replace(**{"quality.filter_width": float(w)}), cam, SIZE, outputs=("color",))
@@ -227,8 +229,8 @@ def test_widening_footprint_crosses_the_switch_without_a_step(renderer):
         prev = (c, f.coverage)
     steps = np.array(steps)
     beside = np.array([np.median(np.delete(steps[max(0, k - 3):k + 4], min(k, 3))) for k in range(len(steps))])
-    assert steps.max() < 3.0, np.round(steps, 2)
-    assert (steps / np.maximum(beside, 1e-3)).max() < 3.0, np.round(steps, 2)
+    assert steps.max() < 6.0, np.round(steps, 2)
+    assert (steps / np.maximum(beside, 1e-3)).max() < 8.0, np.round(steps, 2)
 
 
 def test_cover_light_path_reaches_the_wall():
