@@ -252,7 +252,10 @@ AB_PAIRS = 12           # alternated none / variant pairs per A/B (median of the
 MEDIUM_SCENES = ("fur-ball far", "sintel_hair.tfx", "harolongo.data")
 # coverage.glsl's band (COVER_MEDIUM_FROM, COVER_MEDIUM_FULL) for the variants; None: the shader's own
 BANDS: dict[str, tuple[float, float] | None] = {"filtered": None, "scan only": (1e9, 2e9), "medium only": (0.0, 1e-6)}
-DOLLY = (0.3, 1.4, 40)  # the fur-ball dolly: FAR_FUR_DISTANCE times geomspace(lo, hi, n)
+# the dolly across the switch: the default preset (its 24 containers at about one distance, so they switch
+# together), its camera distance times geomspace(lo, hi, n): fiber slots a footprint spans 7 .. 36
+DOLLY_SCENE = "default"
+DOLLY = (0.25, 1.25, 40)
 
 
 @contextmanager
@@ -318,16 +321,18 @@ def medium_rows(s: Subject, size, pics: dict, pairs: int = AB_PAIRS) -> list[dic
 
 
 def dolly(s: Subject, size, out: Path | None = None, spec=DOLLY) -> list[dict]:
-    """The camera dollies out across the switch from scan to medium (``spec``: FAR_FUR_DISTANCE times
-    geomspace(lo, hi, n)); per step, per variant (the filtered blend, the scan alone, the medium alone): the
+    """The camera dollies out across the switch from scan to medium (``spec``: the scene's own camera
+    distance times geomspace(lo, hi, n)); per step, per variant (the filtered blend, the scan alone, the
+    medium alone): the
     share of covered pixels that change by more than 4/255 and the mean change (levels) from the step
     before, and the mean colour of the covered pixels. A dolly moves the picture anyway; a step from scan to
     medium would show as the blend's change standing out of both of the others'."""
     from ..render.camera import Camera
 
     lo, hi, n = spec
-    distances = FAR_FUR_DISTANCE * np.geomspace(lo, hi, n)
     p0 = _mode_params(s, FILTERED)
+    distances = float(np.linalg.norm(np.asarray(s.cam.position, np.float64) - np.asarray(s.cam.target, np.float64))
+                      ) * np.geomspace(lo, hi, n)
     rows = []
     for k, band in BANDS.items():
         prev = None
@@ -365,7 +370,7 @@ def plot_dolly(rows: list[dict], path: Path) -> None:
     axes[0].set_ylabel("mean level of covered pixels")
     axes[1].set_ylabel("mean change from the step before (levels)")
     for a in axes:
-        a.set_xlabel("camera distance (fur-ball; 8 = 'fur-ball far')")
+        a.set_xlabel(f"camera distance ({DOLLY_SCENE} preset)")
         a.set_xscale("log")
         a.legend(fontsize=7)
     fig.suptitle("dolly across the switch from scan to medium (quality.filter = coverage)")
@@ -548,7 +553,7 @@ def run(size=(320, 180), reps: int = 5, scenes=SCENES, ref_n: int = REFERENCE_N,
                 if name == TURNTABLE_SCENE and FILTERED in MODES:
                     out.mkdir(parents=True, exist_ok=True)
                     turntable_change(s, size, out / "turntable_change.png")
-                if name == "fur-ball far":
+                if name == DOLLY_SCENE:
                     out.mkdir(parents=True, exist_ok=True)
                     dol = dolly(s, size, out, dolly_spec)
             print(f"{name}: {time.perf_counter() - t:.0f} s", flush=True)
@@ -609,8 +614,8 @@ def write_extras(ab: list[dict], med: list[dict], dol: list[dict], out: Path) ->
             summary.append({"variant": k, "largest_step_mean_change": float(steps.max()),
                             "median_step_mean_change": float(np.median(steps)),
                             "largest_step_changed_pct": float(shares.max())})
-        lines += ["", f"## Dolly across the switch (fur-ball, distance {DOLLY[0]:g}-{DOLLY[1]:g} x "
-                      f"{FAR_FUR_DISTANCE:g} in {DOLLY[2]} steps; dolly.csv)", ""]
+        lines += ["", f"## Dolly across the switch ({DOLLY_SCENE} preset, its camera distance x {DOLLY[0]:g} to "
+                      f"{DOLLY[1]:g} in {DOLLY[2]} steps; dolly.csv)", ""]
         lines += table(summary, list(summary[0])) + ["", "![dolly](dolly.png)"]
     with open(out / "README.md", "a") as f:
         f.write("\n".join(lines) + "\n")

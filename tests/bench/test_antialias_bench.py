@@ -133,6 +133,7 @@ def test_tiny_run_writes_every_output(tmp_path):
     with open(tmp_path / "ab.csv") as f:
         ab = list(csv.DictReader(f))
     assert [a["scene"] for a in ab] == ["default", "fur-ball far"] and all(float(a["median"]) > 0 for a in ab)
+    assert aa.DOLLY_SCENE == "default"
     with open(tmp_path / "medium.csv") as f:
         assert [m["variant"] for m in csv.DictReader(f)] == list(aa.BANDS)
     with open(tmp_path / "dolly.csv") as f:
