@@ -1,8 +1,8 @@
 """``python -m app.bench.antialias [--quick] [--size WxH] [--out DIR]``: the measuring stick for thin fibers.
 
 Issue 16 asks for a filtered mode whose sub-pixel fibers hold still; this bench measures the antialias modes
-that exist today so that mode has something to beat. Per scene (the default preset, the fur-ball seen from
-a distance, sintel_hair.tfx) and per mode (none, supersample 2/3/4, MSAA 2/4, the viewer's accumulation, and
+against it. Per scene (the default preset, the fur-ball seen from a distance, sintel_hair.tfx, the far
+fur-ball curled and twisted) and per mode (none, supersample 2/3/4, MSAA 2/4, the viewer's accumulation, and
 the filtered mode, quality.filter = coverage):
 
   stability  the share of covered pixels whose colour changes by more than 4/255 (any channel, 8-bit sRGB
@@ -15,6 +15,10 @@ the filtered mode, quality.filter = coverage):
              frame, all in one process (llvmpipe's threads belong to it, so load elsewhere hardly matters)
 
 Covered pixels: those where any of the reference's rays (unmoved or moved) meets a fiber.
+
+With --out it also writes the filtered mode's cost alternated with none's (ab.csv: the issue's 3x target is
+held to these), its medium held against its scan on MEDIUM_SCENES (medium.csv) and a camera dolly across the
+switch between them (dolly.csv, dolly.png).
 
 The viewer's accumulation is reproduced, not scripted: while the camera is still, the viewer renders one
 single-ray sample per UI frame at the offsets of ``app.viewer.display.supersample_offsets(n)`` (n =
