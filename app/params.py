@@ -251,8 +251,9 @@ SPEC: tuple[Param, ...] = (
     P("quality.supersample", int, 1, "n x n stratified rays per pixel", 1, 4),
     P("quality.msaa", int, 0, "MSAA samples for coverage (0 = off)", 0, 8),
     P("quality.filter", str, "off", "antialias thin fibers by their coverage: each pixel's ray is a cone and "
-      "every fiber it meets adds the share of its footprint that fiber covers (exact mode, straight fibers; "
-      "ids and depth stay the nearest fiber's); off: one ray, the nearest fiber's colour",
+      "every fiber it meets adds the share of its footprint that fiber covers, a container far below the "
+      "footprint as a medium (exact mode; ids and depth stay the nearest fiber's); off: one ray, the nearest "
+      "fiber's colour",
       choices=("off", "coverage")),
     P("quality.filter_width", float, 1.0, "half-width of the filtered mode's tent footprint: wider holds "
       "still better under camera moves, narrower is sharper", 0.25, 4.0, "pixels"),

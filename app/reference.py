@@ -527,3 +527,119 @@ def footprint_coverage(x, r, w):
     with np.errstate(over="ignore", invalid="ignore"):
         inv = 1.0 / np.maximum(w, 1e-30)
         return np.clip(tent_cdf((r - x) * inv) - tent_cdf((-r - x) * inv), 0.0, 1.0)
+
+
+# --- the filtered mode's medium (glsl/fibers/coverage.glsl: ring_fence .. cover_medium) --------------------
+# The shader's constants (#define there; tests/render/test_filter.py holds them equal).
+COVER_OPAQUE = 0.03
+COVER_MEDIUM_FROM = 12.0
+COVER_MEDIUM_FULL = 20.0
+COVER_TENT_MIN = 0.01
+
+
+@dataclass(frozen=True)
+class Fence:
+    """A ring seen across as a fence (coverage.glsl: ring_fence): at offset u from the axis its fibers cover
+    g(u) = min(1, kappa / sqrt(rho^2 - u^2)) of the cross axis, kappa = n rf / pi, 0 past the ring; closed
+    (g = 1) from ys = sqrt(rho^2 - kappa^2) out; g1s, g2s: g's first and second antiderivatives at ys."""
+    rho: float
+    kappa: float
+    ys: float
+    g1s: float
+    g2s: float
+
+
+def ring_fence(rho: float, n: float, rf: float) -> Fence:
+    kappa = n * rf / math.pi
+    ys = math.sqrt(max(rho * rho - kappa * kappa, 0.0))
+    a_s = math.asin(min(ys / max(rho, 1e-30), 1.0))
+    return Fence(rho, kappa, ys, kappa * a_s,
+                 kappa * (ys * a_s - ys * ys / (math.sqrt(max(rho * rho - ys * ys, 0.0)) + rho)))
+
+
+def ring_fence_f2(f: Fence, u):
+    """The second antiderivative of the fence's g, even in u, 0 at 0."""
+    a = np.abs(np.asarray(u, np.float64))
+    rho = max(f.rho, 1e-30)
+    opened = f.kappa * (a * np.arcsin(np.minimum(a / rho, 1.0))
+                        - a * a / (np.sqrt(np.maximum(f.rho ** 2 - a * a, 0.0)) + f.rho))
+    inner = np.minimum(a, f.rho) - f.ys
+    closed = f.g2s + (f.g1s + 0.5 * inner) * inner + (f.g1s + f.rho - f.ys) * np.maximum(a - f.rho, 0.0)
+    return np.where(a <= f.ys, opened, closed)
+
+
+def ring_fence_g(f: Fence, u):
+    """g itself: the share of the cross axis one arc's fibers cover at offset u."""
+    u = np.abs(np.asarray(u, np.float64))
+    with np.errstate(divide="ignore"):
+        g = np.minimum(1.0, f.kappa / np.sqrt(np.maximum(f.rho ** 2 - u * u, 1e-30)))
+    return np.where(u < f.rho, g, 0.0)
+
+
+def ring_fence_cover(f: Fence, d, w):
+    """The share of a tent footprint (half-width w, centre line d from the axis) one arc of the ring covers:
+    the tent's second difference of ring_fence_f2 (g where w is below COVER_TENT_MIN of the radius)."""
+    d, w = np.asarray(d, np.float64), np.asarray(w, np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tent = (ring_fence_f2(f, d + w) - 2.0 * ring_fence_f2(f, d) + ring_fence_f2(f, d - w)) / np.maximum(
+            w * w, 1e-30)
+    return np.clip(np.where(w > COVER_TENT_MIN * f.rho, tent, ring_fence_g(f, d)), 0.0, 1.0)
+
+
+def ring_fence_mean(f: Fence) -> float:
+    """g's mean over the ring's width (|u| < rho): how much of what lies inside its silhouette it hides."""
+    return float(np.clip((f.g1s + f.rho - f.ys) / max(f.rho, 1e-30), 0.0, 1.0))
+
+
+def medium_weight(wu, fibers: int, rings: int):
+    """0 (scan the fibers) .. 1 (a medium), by the fiber slots the footprint (half-width wu) spans on a mean
+    ring, fibers / rings slots around radius 1/2: GLSL smoothstep(COVER_MEDIUM_FROM, COVER_MEDIUM_FULL, .)."""
+    x = 2.0 * np.asarray(wu, np.float64) * fibers / (math.pi * max(rings, 1))
+    t = np.clip((x - COVER_MEDIUM_FROM) / (COVER_MEDIUM_FULL - COVER_MEDIUM_FROM), 0.0, 1.0)
+    return t * t * (3.0 - 2.0 * t)
+
+
+def exp_mean(k: float, p0, p1, e0=None, e1=None):
+    """The mean of exp(-k p) for p running linearly from p0 to p1 (e0, e1: exp(-k p0), exp(-k p1))."""
+    p0, p1 = np.asarray(p0, np.float64), np.asarray(p1, np.float64)
+    e0 = np.exp(-k * p0) if e0 is None else e0
+    e1 = np.exp(-k * p1) if e1 is None else e1
+    spread = k * np.abs(p1 - p0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(spread > 1e-3, np.abs(e0 - e1) / spread, 0.5 * (e0 + e1))
+
+
+def medium_alpha(lay: RingLayout, d, w, present=1.0, scale: float = 1.0):
+    """A container's coverage of a tent footprint as the medium composites it (coverage.glsl: cover_medium,
+    cover_container's rescale at COVER_OPAQUE): per ring both arcs' fence cover, each under what the front
+    arcs of its own and the outer rings leave open (their fences' means); a back arc under the back arcs
+    inside it too.
+    ``present``: the share of every arc's fibers inside the container's window and alive (1: all);
+    ``scale``: the ellipsoid's factor on every ring's radius. A ring's fence has its fibers' outer side as
+    its edge (rho + rf): their centres' jitter spreads the silhouette both ways about it."""
+    d, w = np.broadcast_arrays(np.asarray(d, np.float64), np.asarray(w, np.float64))
+    front = np.zeros(d.shape)
+    back = np.zeros(d.shape)
+    opened = np.ones(d.shape)
+    for i in range(lay.rings):
+        rf = float(lay.ring_radius[i])
+        f = ring_fence(scale * float(lay.rho[i]) + rf, float(lay.n[i]), rf)       # the fibers' outer side
+        cover, hides = ring_fence_cover(f, d, w), ring_fence_mean(f)
+        front = front + cover * present * opened
+        opened = opened * (1.0 - hides * present)
+        back = back * (1.0 - hides * present) + cover * present * opened
+    total = front + back
+    total = total / np.maximum(total, 1.0)
+    return 1.0 - np.maximum((1.0 - total) - COVER_OPAQUE, 0.0) / (1.0 - COVER_OPAQUE)
+
+
+def cover_light_path(q, l2):
+    """The distance from q (a point of a container's cross-section, unit space) to the unit circle along a
+    direction whose xy part is l2 (the key light: its path in 3D for a unit direction); inf along the
+    axis (coverage.glsl: cover_light_path)."""
+    q, l2 = np.asarray(q, np.float64), np.asarray(l2, np.float64)
+    ll = (l2 * l2).sum(-1)
+    qb = (q * l2).sum(-1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        root = np.sqrt(np.maximum(qb * qb - ll * ((q * q).sum(-1) - 1.0), 0.0))
+        return np.where(ll > 0.0, (-qb + root) / np.where(ll > 0.0, ll, 1.0), np.inf)

@@ -1,8 +1,8 @@
 """``python -m app.bench.antialias [--quick] [--size WxH] [--out DIR]``: the measuring stick for thin fibers.
 
 Issue 16 asks for a filtered mode whose sub-pixel fibers hold still; this bench measures the antialias modes
-that exist today so that mode has something to beat. Per scene (the default preset, the fur-ball seen from
-a distance, sintel_hair.tfx) and per mode (none, supersample 2/3/4, MSAA 2/4, the viewer's accumulation, and
+against it. Per scene (the default preset, the fur-ball seen from a distance, sintel_hair.tfx, the far
+fur-ball curled and twisted) and per mode (none, supersample 2/3/4, MSAA 2/4, the viewer's accumulation, and
 the filtered mode, quality.filter = coverage):
 
   stability  the share of covered pixels whose colour changes by more than 4/255 (any channel, 8-bit sRGB
@@ -15,6 +15,10 @@ the filtered mode, quality.filter = coverage):
              frame, all in one process (llvmpipe's threads belong to it, so load elsewhere hardly matters)
 
 Covered pixels: those where any of the reference's rays (unmoved or moved) meets a fiber.
+
+With --out it also writes the filtered mode's cost alternated with none's (ab.csv: the issue's 3x target is
+held to these), its medium held against its scan on MEDIUM_SCENES (medium.csv) and a camera dolly across the
+switch between them (dolly.csv, dolly.png).
 
 The viewer's accumulation is reproduced, not scripted: while the camera is still, the viewer renders one
 single-ray sample per UI frame at the offsets of ``app.viewer.display.supersample_offsets(n)`` (n =
@@ -29,6 +33,7 @@ import argparse
 import csv
 import platform
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import date
 from pathlib import Path
@@ -45,6 +50,10 @@ MOVE_PX = 0.1                   # the camera move, in pixels
 REFERENCE_N = 16                # reference rays per pixel: REFERENCE_N x REFERENCE_N
 GAMMA = 2.2                     # the renderer's display transform (glsl/shading/light.glsl): pow(c, 1/2.2)
 FAR_FUR_DISTANCE = 8.0          # fur-ball camera distance: its fibers ~0.3 px wide at 180 px high
+# the curled scene: the far fur-ball's fibers curled (a helix of 0.35 ring widths, 6 turns root to tip) and
+# twisted half a turn, as the twisted-curled-1 preset winds its rope
+CURLED = {"shape.curl_amplitude": 0.35, "shape.curl_frequency": 6.0, "shape.curl_pattern": "helix",
+          "shape.twist": 0.5}
 TARGET_STABILITY_PCT = 10.0     # issue 16's targets for the filtered mode
 TARGET_COST = 3.0
 
@@ -62,14 +71,15 @@ MODES: dict[str, tuple[dict, int]] = {
     "filtered 0.6 px": ({"quality.filter": "coverage", "quality.filter_width": 0.6}, 0),   # sharper, less still
 }
 FILTERED = "filtered"
-SCENES = ("default", "fur-ball far", "sintel_hair.tfx")
+SCENES = ("default", "fur-ball far", "sintel_hair.tfx", "fur-ball curled")
 # The explicit baseline's coverage treatment (app/render/explicit.py, quality.filter = coverage): the same
 # scenes drawn as ribbons, against a reference of the explicit frames themselves; it has no supersample or
 # MSAA modes. "virtual none" and "virtual filtered" are the virtual renderer's frames of the same scene held
 # against that reference: the filtered frames of both should look alike. Not in the default run (the
-# explicit reference is 512 explicit frames); pass them with --scene.
+# explicit reference is 512 explicit frames); pass them with --scene. The curled scene has no explicit twin:
+# the explicit baseline draws curls straight.
 EXPLICIT = " (explicit)"
-EXPLICIT_SCENES = tuple(n + EXPLICIT for n in SCENES)
+EXPLICIT_SCENES = tuple(n + EXPLICIT for n in SCENES if n != "fur-ball curled")
 VIRTUAL = "virtual "
 EXPLICIT_MODES = ("none", "viewer accumulation 16", "filtered", "filtered 0.6 px", VIRTUAL + "none",
                   VIRTUAL + "filtered")
@@ -137,6 +147,7 @@ def load_subject(ctx, programs, name: str, size) -> Subject:
     from ..render.camera import Camera
     from ..render.renderer import Renderer
     from ..scene.generators import build_scene
+    from ..scene.grooms import GROOM_SUFFIXES
     from .grooms import HAIR_DATA
 
     explicit = name.endswith(EXPLICIT)
@@ -145,7 +156,9 @@ def load_subject(ctx, programs, name: str, size) -> Subject:
         p = find_preset("default").params
     elif name == "fur-ball far":
         p = find_preset("fur-ball").params.replace(**{"camera.distance": FAR_FUR_DISTANCE})
-    elif name.endswith(".tfx"):
+    elif name == "fur-ball curled":
+        p = find_preset("fur-ball").params.replace(**{"camera.distance": FAR_FUR_DISTANCE, **CURLED})
+    elif (HAIR_DATA / name).suffix in GROOM_SUFFIXES:
         path = HAIR_DATA / name
         if not path.exists():
             raise FileNotFoundError(f"{path}: shared hair data not found (tests and benches expect "
@@ -261,6 +274,140 @@ def best_mode(rows: list[dict]) -> str:
     return min(cands, key=lambda r: (r["stability_changed_pct"], r["error_mean_levels"]))["mode"]
 
 
+# --- the filtered mode's cost, alternated; its medium against its scan; the switch in a dolly -----------------
+AB_PAIRS = 12           # alternated none / variant pairs per A/B (median of the per-pair ratios)
+# the scenes where the medium is held against the scan: a layout of few fat fibers (the footprint a few
+# spacings wide), and two dense grooms (containers 3.8 px and 0.7 px wide: footprints far above a fiber)
+MEDIUM_SCENES = ("fur-ball far", "sintel_hair.tfx", "harolongo.data")
+# coverage.glsl's band (COVER_MEDIUM_FROM, COVER_MEDIUM_FULL) for the variants; None: the shader's own
+BANDS: dict[str, tuple[float, float] | None] = {"filtered": None, "scan only": (1e9, 2e9), "medium only": (0.0, 1e-6)}
+# the dolly across the switch: the default preset (its 24 containers at about one distance, so they switch
+# together), its camera distance times geomspace(lo, hi, n): fiber slots a footprint spans 7 .. 36
+DOLLY_SCENE = "default"
+DOLLY = (0.25, 1.25, 40)
+
+
+@contextmanager
+def medium_band(band: tuple[float, float] | None):
+    """Programs compiled inside take coverage.glsl's medium band from ``band`` (the scan alone: a band past
+    any footprint; the medium alone: a band at 0). A bench-only knob: it wraps the renderer's defines, which
+    the parameters do not reach on purpose (the band is the shader's choice, not a look)."""
+    from ..render import renderer as rmod
+
+    if band is None:
+        yield
+        return
+    original = rmod.model_defines
+    rmod.model_defines = lambda p, mode, cost: {**original(p, mode, cost), "COVER_MEDIUM_FROM": band[0],
+                                                "COVER_MEDIUM_FULL": band[1]}
+    try:
+        yield
+    finally:
+        rmod.model_defines = original
+
+
+def _frame_s(s: Subject, p, size, band=None) -> float:
+    with medium_band(band):
+        t = time.process_time()
+        s.renderer.render(p, s.cam, size, outputs=("color",))
+        s.renderer.ctx.finish()
+        return time.process_time() - t
+
+
+def ab_costs(s: Subject, size, variants: dict[str, tuple[object, tuple[float, float] | None]],
+             pairs: int = AB_PAIRS) -> dict[str, tuple[float, float, float]]:
+    """Per variant (params, band) its frame's process_time over mode none's, alternated frame by frame in
+    this process (none, then each variant, ``pairs`` times): (median, min, max) of the per-pair ratios."""
+    none = _mode_params(s, "none")
+    _frame_s(s, none, size)
+    for p, band in variants.values():
+        _frame_s(s, p, size, band)            # compile and warm up
+    ratios: dict[str, list[float]] = {k: [] for k in variants}
+    for _ in range(pairs):
+        base = _frame_s(s, none, size)
+        for k, (p, band) in variants.items():
+            ratios[k].append(_frame_s(s, p, size, band) / base)
+    return {k: (float(np.median(v)), float(np.min(v)), float(np.max(v))) for k, v in ratios.items()}
+
+
+def medium_rows(s: Subject, size, pics: dict, pairs: int = AB_PAIRS) -> list[dict]:
+    """The filtered mode, its scan alone and its medium alone on one scene: stability, error (against the
+    scene's reference in ``pics``) and the A/B cost against none."""
+    p = _mode_params(s, FILTERED)
+    covered = pics["_covered"]
+    costs = ab_costs(s, size, {k: (p, band) for k, band in BANDS.items()}, pairs)
+    rows = []
+    for k, band in BANDS.items():
+        with medium_band(band):
+            img = np.round(s.renderer.render(p, s.cam, size, outputs=("color",)).color.astype(np.float64))
+            moved = np.round(s.renderer.render(p, s.cam, size, outputs=("color",),
+                                               offset=(MOVE_PX, 0.0)).color.astype(np.float64))
+        mean, p99 = error_stats(img, pics["reference"], covered)
+        rows.append({"scene": s.name, "variant": k, "stability_changed_pct": changed_share(img, moved, covered),
+                     "error_mean_levels": mean, "error_p99_levels": p99, "cost_ab_median": costs[k][0],
+                     "cost_ab_min": costs[k][1], "cost_ab_max": costs[k][2], "fiber_px": s.fiber_px})
+    return rows
+
+
+def dolly(s: Subject, size, out: Path | None = None, spec=DOLLY) -> list[dict]:
+    """The camera dollies out across the switch from scan to medium (``spec``: the scene's own camera
+    distance times geomspace(lo, hi, n)); per step, per variant (the filtered blend, the scan alone, the
+    medium alone): the
+    share of covered pixels that change by more than 4/255 and the mean change (levels) from the step
+    before, and the mean colour of the covered pixels. A dolly moves the picture anyway; a step from scan to
+    medium would show as the blend's change standing out of both of the others'."""
+    from ..render.camera import Camera
+
+    lo, hi, n = spec
+    p0 = _mode_params(s, FILTERED)
+    distances = float(np.linalg.norm(np.asarray(s.cam.position, np.float64) - np.asarray(s.cam.target, np.float64))
+                      ) * np.geomspace(lo, hi, n)
+    rows = []
+    for k, band in BANDS.items():
+        prev = None
+        with medium_band(band):
+            for d in distances:
+                p = p0.replace(**{"camera.distance": float(d)})
+                cam = Camera.from_params(p, s.renderer.scene, size[0] / size[1])
+                f = s.renderer.render(p, cam, size, outputs=("color",))
+                c = np.round(f.color.astype(np.float64))
+                row = {"variant": k, "distance": float(d), "mean_level": float(c[f.coverage > 0.5].mean()),
+                       "changed_pct": float("nan"), "mean_change_levels": float("nan")}
+                if prev is not None:
+                    cov = (f.coverage > 0) | (prev[1] > 0)
+                    row["changed_pct"] = changed_share(c, prev[0], cov)
+                    row["mean_change_levels"] = float(np.abs(c - prev[0]).max(-1)[cov].mean())
+                rows.append(row)
+                prev = (c, f.coverage)
+    if out is not None:
+        plot_dolly(rows, out / "dolly.png")
+    return rows
+
+
+def plot_dolly(rows: list[dict], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 3.8))
+    for k in BANDS:
+        rs = [r for r in rows if r["variant"] == k]
+        d = [r["distance"] for r in rs]
+        axes[0].plot(d, [r["mean_level"] for r in rs], label=k)
+        axes[1].plot(d[1:], [r["mean_change_levels"] for r in rs[1:]], label=k)
+    axes[0].set_ylabel("mean level of covered pixels")
+    axes[1].set_ylabel("mean change from the step before (levels)")
+    for a in axes:
+        a.set_xlabel(f"camera distance ({DOLLY_SCENE} preset)")
+        a.set_xscale("log")
+        a.legend(fontsize=7)
+    fig.suptitle("dolly across the switch from scan to medium (quality.filter = coverage)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
 # --- pictures --------------------------------------------------------------------------------------------
 def _crop_box(covered: np.ndarray, cw: int, ch: int) -> tuple[int, int]:
     """Top-left (y, x) of the cw x ch window holding the most covered pixels (a coarse search)."""
@@ -318,6 +465,7 @@ def contact_sheet(per_scene: list[tuple[str, dict, str]], path: Path, zoom: int 
 
 
 TURN_DEGREES = 0.5     # turntable_change: two frames of a 720-frame turn
+TURNTABLE_SCENE = "sintel_hair.tfx"
 
 
 def turntable_change(s: Subject, size, path: Path) -> None:
@@ -403,24 +551,52 @@ def write_outputs(rows: list[dict], per_scene, out: Path, header: str) -> None:
 
 
 def run(size=(320, 180), reps: int = 5, scenes=SCENES, ref_n: int = REFERENCE_N, out: Path | None = None,
-        command: str = "python -m app.bench.antialias") -> list[dict]:
+        command: str = "python -m app.bench.antialias", pairs: int = AB_PAIRS,
+        medium_scenes=MEDIUM_SCENES, dolly_spec=DOLLY) -> list[dict]:
+    """The measuring stick's rows; with ``out``, also the A/B costs (``pairs`` alternated pairs), the medium
+    against the scan on ``medium_scenes`` and the dolly across the switch, written there."""
     from ..gl.context import create_headless
     from ..gl.shaders import ProgramCache
 
     hc = create_headless()
     try:
         programs = ProgramCache()
-        rows, per_scene = [], []
+        rows, per_scene, ab, med, dol = [], [], [], [], []
+
+        def extras(s: Subject, pics: dict) -> None:
+            if s.name in medium_scenes:
+                med.extend(medium_rows(s, size, pics, pairs))
+                ab.extend({"scene": s.name, "variant": r["variant"], "median": r["cost_ab_median"],
+                           "min": r["cost_ab_min"], "max": r["cost_ab_max"]} for r in med[-len(BANDS):]
+                          if r["variant"] == FILTERED)
+            else:
+                c = ab_costs(s, size, {FILTERED: (_mode_params(s, FILTERED), None)}, pairs)[FILTERED]
+                ab.append({"scene": s.name, "variant": FILTERED, "median": c[0], "min": c[1], "max": c[2]})
+
         for name in scenes:
             s = load_subject(hc.ctx, programs, name, size)
             t = time.perf_counter()
             r, pics = measure_scene(s, size, reps, ref_n)
-            print(f"{name}: {time.perf_counter() - t:.0f} s", flush=True)
             rows += r
             per_scene.append((name, pics, best_mode(r)))
-            if out is not None and name == SCENES[-1] and FILTERED in MODES:
-                out.mkdir(parents=True, exist_ok=True)
-                turntable_change(s, size, out / "turntable_change.png")
+            if out is not None:
+                extras(s, pics)
+                if name == TURNTABLE_SCENE and FILTERED in MODES:
+                    out.mkdir(parents=True, exist_ok=True)
+                    turntable_change(s, size, out / "turntable_change.png")
+                if name == DOLLY_SCENE:
+                    out.mkdir(parents=True, exist_ok=True)
+                    dol = dolly(s, size, out, dolly_spec)
+            print(f"{name}: {time.perf_counter() - t:.0f} s", flush=True)
+            s.renderer.release_targets()
+        # the medium's scenes that are not the measuring stick's own: their reference for the error alone
+        for name in ([m for m in medium_scenes if m not in scenes] if out is not None else []):
+            t = time.perf_counter()
+            s = load_subject(hc.ctx, programs, name, size)
+            ref, cov = render_reference(s, size, n=ref_n)
+            _, cov_moved = render_reference(s, size, (MOVE_PX, 0.0), n=ref_n)
+            extras(s, {"reference": ref, "_covered": (cov > 0) | (cov_moved > 0)})
+            print(f"{name}: {time.perf_counter() - t:.0f} s", flush=True)
             s.renderer.release_targets()
             if s.virtual is not None:
                 s.virtual.release_targets()
@@ -430,11 +606,53 @@ def run(size=(320, 180), reps: int = 5, scenes=SCENES, ref_n: int = REFERENCE_N,
                       f"{platform.processor() or platform.machine()}, {hc.renderer}, {hc.version}. Image "
                       f"{size[0]}x{size[1]}; move {MOVE_PX} px to the right (``offset``); reference "
                       f"{ref_n}x{ref_n} jittered stratified single-ray frames averaged in linear light (gamma "
-                      f"{GAMMA}); cost: median process_time of {reps} pictures (colour read back) over none's.")
+                      f"{GAMMA}); cost: median process_time of {reps} pictures (colour read back) over none's; "
+                      f"A/B cost: median of {pairs} alternated pairs' ratios.")
             write_outputs(rows, per_scene, out, header)
+            write_extras(ab, med, dol, out)
         return rows
     finally:
         hc.release()
+
+
+def _write_csv(path: Path, rows: list[dict]) -> None:
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+
+
+def write_extras(ab: list[dict], med: list[dict], dol: list[dict], out: Path) -> None:
+    """ab.csv, medium.csv, dolly.csv, and their tables appended to README.md."""
+    fmt = lambda v: f"{v:.3g}" if isinstance(v, float) else str(v)  # noqa: E731
+
+    def table(rows: list[dict], cols: list[str]) -> list[str]:
+        return (["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+                + ["| " + " | ".join(fmt(r[c]) for c in cols) + " |" for r in rows])
+
+    lines = []
+    if ab:
+        _write_csv(out / "ab.csv", ab)
+        lines += ["", f"## Cost, alternated (filtered frame over none's, process_time, per-pair ratios: median, "
+                      f"min, max; target <= {TARGET_COST:g})", ""] + table(ab, list(ab[0]))
+    if med:
+        _write_csv(out / "medium.csv", med)
+        lines += ["", "## The medium against the scan (coverage.glsl's band overridden for the variants; cost: "
+                      "A/B against none)", ""] + table(med, list(med[0]))
+    if dol:
+        _write_csv(out / "dolly.csv", dol)
+        summary = []
+        for k in BANDS:
+            steps = np.array([r["mean_change_levels"] for r in dol if r["variant"] == k][1:])
+            shares = np.array([r["changed_pct"] for r in dol if r["variant"] == k][1:])
+            summary.append({"variant": k, "largest_step_mean_change": float(steps.max()),
+                            "median_step_mean_change": float(np.median(steps)),
+                            "largest_step_changed_pct": float(shares.max())})
+        lines += ["", f"## Dolly across the switch ({DOLLY_SCENE} preset, its camera distance x {DOLLY[0]:g} to "
+                      f"{DOLLY[1]:g} in {DOLLY[2]} steps; dolly.csv)", ""]
+        lines += table(summary, list(summary[0])) + ["", "![dolly](dolly.png)"]
+    with open(out / "README.md", "a") as f:
+        f.write("\n".join(lines) + "\n")
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -452,13 +670,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true", help="160x90, 8x8 reference, 2 timed pictures")
     ap.add_argument("--size", type=_size, default=None, help="image size WxH (default 320x180)")
     ap.add_argument("--scene", action="append", choices=SCENES + EXPLICIT_SCENES,
-                    help="repeatable (default: the three virtual ones)")
+                    help="repeatable (default: the four virtual ones)")
     ap.add_argument("--out", type=Path, default=Path("docs/bench/antialias"))
+    ap.add_argument("--pairs", type=int, default=None, help=f"alternated A/B pairs (default {AB_PAIRS}; quick 3)")
     args = ap.parse_args(argv)
     size = args.size or ((160, 90) if args.quick else (320, 180))
     command = "python -m app.bench.antialias" + (" " + " ".join(argv) if argv else "")
     run(size, reps=2 if args.quick else 5, scenes=args.scene or SCENES, ref_n=8 if args.quick else REFERENCE_N,
-        out=args.out, command=command)
+        out=args.out, command=command, pairs=args.pairs or (3 if args.quick else AB_PAIRS),
+        dolly_spec=(DOLLY[0], DOLLY[1], 12) if args.quick else DOLLY)
     print(f"wrote {args.out / 'README.md'}")
     return 0
 

@@ -68,6 +68,7 @@ MODES = {"fast": 0, "exact": 1, "brute": 2}
 # quality.filter = coverage (glsl/fibers/coverage.glsl): candidates per ring visit of the coverage scan, and
 # the loop passes it may spend, 2 visits a ring plus each visit's final test
 COVER_CAP = 48
+COVER_LIGHT_NODES = 5             # the medium's points across a ring's arc for the key light (coverage.glsl)
 
 # The proxy rectangle's corners as two triangles (glsl/stages/container.vert places them per segment).
 _QUAD = np.array([[0, 0], [1, 0], [1, 1], [0, 0], [1, 1], [0, 1]], dtype=np.float32)
@@ -758,7 +759,9 @@ def _loop_budget(p: Params, rays: int, walks: int = 0) -> int:
     """Loop passes one traversal may spend in one draw: the budget less the shading's share, the walks
     through the hierarchy (WALK_CAP box tests each, raycast.frag), the filtered mode's coverage scan (at
     most COVER_CAP candidates per ring visit) and the ring, arc and canary loops."""
-    cover = 2 * p["fibers.rings"] * (COVER_CAP + 2) + 1 if p["quality.filter"] != "off" else 0
+    # the scan's ring visits and candidates, the medium's rings, their light nodes and two arcs
+    K = p["fibers.rings"]
+    cover = 2 * K * (COVER_CAP + 2) + 1 + K * (COVER_LIGHT_NODES + 3) + 1 if p["quality.filter"] != "off" else 0
     return ((LOOP_CAP - LOOP_HEADROOM - walks * (WALK_CAP + 1) - cover) // max(1, rays)
             - (16 * p["fibers.rings"] + 16))
 
@@ -849,7 +852,7 @@ def draw_ranges(p: Params, scene: Scene, mode: str, rays: int = 1, walks: int = 
 def model_defines(p: Params, mode: str, cost: bool) -> dict[str, int]:
     """The defines of the fiber model and the traversal, the same for either visibility strategy."""
     return {**fibers.glsl_defines(), "TRAVERSAL": MODES[mode], "FILTER": int(filtered(p, mode)),
-            "COVER_CAP": COVER_CAP,
+            "COVER_CAP": COVER_CAP, "COVER_LIGHT_NODES": COVER_LIGHT_NODES,
             "HASH_THESIS": int(p["fibers.hash"] == "thesis"), "COST_PASS": int(cost),
             "SHAPED": int(is_shaped(p)), "SHAPE_CURL": shape_curl_define(p), "SHAPE_FRIZZ": int(is_frizzed(p)),
             "SHAPE_ELLIPSOID": int(p["shape.ellipsoid"] > 0), "SHAPE_TWIST": int(p["shape.twist"] != 0),
@@ -858,11 +861,10 @@ def model_defines(p: Params, mode: str, cost: bool) -> dict[str, int]:
 
 
 def filtered(p: Params, mode: str) -> bool:
-    """Whether a frame gets the filtered colour (quality.filter, glsl/fibers/coverage.glsl): exact mode,
-    straight fibers. Fast mode takes the first container with a hit, which the filter's grown bounds would
-    reorder (its ids would change); brute force is the reference for ids; curved fibers have no coverage
-    scan yet (they keep the nearest fiber's colour)."""
-    return p["quality.filter"] == "coverage" and mode == "exact" and not is_shaped(p)
+    """Whether a frame gets the filtered colour (quality.filter, glsl/fibers/coverage.glsl): exact mode.
+    Fast mode takes the first container with a hit, which the filter's grown bounds would reorder (its ids
+    would change); brute force is the reference for ids."""
+    return p["quality.filter"] == "coverage" and mode == "exact"
 
 
 def shape_curl_define(p: Params) -> int:

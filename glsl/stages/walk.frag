@@ -116,10 +116,12 @@ void main() {
     int depth = opaque(uBvhDepth);
     float tNear = opaque(uNear);
 #if FILTER
-    gBoundGrow = uFootprint;
     vec4 accum = imageLoad(uAccum, px);
-    // until the footprint is opaque every container it meets adds colour, behind the nearest fiber too
-    float cut = accum.a >= 0.999 ? walk_cut(bestT) : INF;
+    // until the footprint is opaque every container it meets adds colour, behind the nearest fiber too, and
+    // the walk's bounds are grown by it; once it is, the walk looks for the nearest fiber only, as without
+    bool opaque = accum.a >= 0.999;
+    gBoundGrow = opaque ? 0.0 : uFootprint;
+    float cut = opaque ? walk_cut(bestT) : INF;
 #else
     float cut = walk_cut(bestT);
 #endif
@@ -150,7 +152,7 @@ void main() {
     // the key light and the self-shadow estimate per fiber (traced shadows: the blend's own shadow ray)
     vec3 Lu = transpose(mat3(seg.ex, seg.ey, seg.ez)) * uLightDir;
     float sigma = SHADOW_MODE == 1 ? uShadowDensity * uFiberDensity : 0.0;
-    CoverBlend cb = cover_straight(seg, uf, wu, Lu, vec2(sigma, uShadowDensity));
+    CoverBlend cb = cover_container(seg, uf, wu, Lu, vec2(sigma, uShadowDensity));
     gTests += cb.tests;
 #if !COST_PASS
     FiberHit bh = no_hit();
@@ -172,7 +174,9 @@ void main() {
     imageStore(uAccum, px, accum);
     imageStore(uAccumFront, px, vec4(cb.alpha > 0.0 ? min(front, tc) : front));
 #endif
-    cut = accum.a >= 0.999 ? walk_cut(bestT) : INF;
+    opaque = accum.a >= 0.999;
+    gBoundGrow = opaque ? 0.0 : uFootprint;
+    cut = opaque ? walk_cut(bestT) : INF;
 #else
     cut = walk_cut(bestT);
 #endif

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from app import reference
-from app.bench.antialias import FAR_FUR_DISTANCE, changed_share
+from app.bench.antialias import CURLED, FAR_FUR_DISTANCE, changed_share
 from app.bench.extremes import FloatRenderer
 from app.gl.shaders import ProgramCache, glsl_root
 from app.params import ParamError
@@ -36,8 +36,10 @@ def _subject(renderer, name="default", **values):
 
 
 @pytest.mark.parametrize("name, values", [("default", {}), ("fur-ball", {"camera.distance": FAR_FUR_DISTANCE}),
-                                          ("default", {"quality.visibility": "walk"})],
-                         ids=["default-proxies-vs-filtered", "fur-ball-far", "default-walk-vs-filtered"])
+                                          ("default", {"quality.visibility": "walk"}),
+                                          ("fur-ball", {"camera.distance": FAR_FUR_DISTANCE, **CURLED})],
+                         ids=["default-proxies-vs-filtered", "fur-ball-far", "default-walk-vs-filtered",
+                              "fur-ball-curled"])
 def test_filter_changes_the_colour_and_not_the_ids(renderer, name, values):
     p, cam = _subject(renderer, name, **values)
     outputs = ("color", "ids", "geom")
@@ -56,21 +58,27 @@ def test_filter_changes_the_colour_and_not_the_ids(renderer, name, values):
     assert 0.0 <= on.coverage.min() and on.coverage.max() <= 1.0
 
 
-def test_exact_stays_brute_force_with_the_filter_on(renderer):
-    """The filter grows the walk's bounds and walks on past the nearest fiber; none of that may change which
-    fiber is nearest (brute force ignores the filter: it is the reference for ids)."""
-    p, cam = _subject(renderer, "fur-ball", **{"camera.distance": FAR_FUR_DISTANCE})
+@pytest.mark.parametrize("values", [{}, CURLED], ids=["straight", "curled"])
+def test_exact_stays_brute_force_with_the_filter_on(renderer, values):
+    """The filter grows the walk's bounds and walks on past the nearest fiber until the footprint is opaque
+    (then on with the bounds not grown); none of that may change which fiber is nearest (brute force ignores
+    the filter: it is the reference for ids)."""
+    p, cam = _subject(renderer, "fur-ball", **{"camera.distance": FAR_FUR_DISTANCE, **values})
     exact = renderer.render(p.replace(**ON), cam, SIZE, outputs=("ids",))
     brute = renderer.render(p.replace(**ON), cam, SIZE, outputs=("ids",), mode="brute")
     assert exact.hit.sum() > 500
     assert np.array_equal(exact.ids, brute.ids)
 
 
-def test_thin_fibers_hold_still(renderer):
+@pytest.mark.parametrize("name, values", [("default", {}),
+                                          ("fur-ball", {"camera.distance": FAR_FUR_DISTANCE, **CURLED})],
+                         ids=["default", "fur-ball-curled"])
+def test_thin_fibers_hold_still(renderer, name, values):
     """A tenth of a pixel's camera move changes most of the unfiltered thin-fiber pixels (the default
-    preset's fibers are 0.16 px wide at 320x180, 0.08 px here) and few of the filtered ones (measured at
-    320x180: 71% and 4%; docs/antialias.md). The bound is loose; the unfiltered frame fails it."""
-    p, cam = _subject(renderer, "default")
+    preset's fibers are 0.16 px wide at 320x180, 0.08 px here; the curled fur-ball's 0.15 px) and few of the
+    filtered ones (docs/antialias.md has the 320x180 figures). The bound is loose; the unfiltered frame
+    fails it."""
+    p, cam = _subject(renderer, name, **values)
     share = {}
     for label, q in (("off", p), ("on", p.replace(**ON))):
         a = renderer.render(q, cam, SIZE)
@@ -94,6 +102,14 @@ EXTREMES = {
     # 64 rings of 0.01 degree fibers: the exact traversal needs 11 draw ranges, the coverage scan runs in the
     # first (it takes whole rings, thinned)
     "many-draw-ranges": {"fibers.rings": 64, "fibers.phi_step": 0.01, "fibers.fiber_radius": 0.5 / 64},
+    # the medium: containers far below a pixel (every footprint many containers wide), and sparse rings
+    # whose fences stay open
+    "medium-far-below-a-pixel": {"camera.distance": 60.0},
+    "medium-open-fences": {"fibers.fiber_radius": 0.002, "camera.distance": 12.0},
+    # curved fibers, scanned near and a medium far
+    "curled-near": {**CURLED, "camera.distance": 1.2},
+    "curled-far": {**CURLED, "camera.distance": 30.0},
+    "ellipsoid-frizz": {"shape.ellipsoid": 1.0, "shape.frizz": 0.6, "shape.curl_amplitude": 0.2},
 }
 
 
@@ -121,7 +137,7 @@ def test_filter_applies_where_it_can_and_says_so():
     assert filtered(p, "exact")
     assert not filtered(p, "fast"), "fast takes the first container hit: the grown bounds would reorder it"
     assert not filtered(p, "brute"), "brute force is the reference for ids"
-    assert not filtered(p.replace(**{"shape.curl_amplitude": 0.2}), "exact"), "curved fibers: no scan yet"
+    assert filtered(p.replace(**{"shape.curl_amplitude": 0.2}), "exact"), "curved fibers are filtered too"
     assert not filtered(find_preset("default").params, "exact")
     with pytest.raises(ParamError):
         p.replace(**{"quality.filter": "box"})
