@@ -72,6 +72,7 @@ from ..render.camera import Camera
 from ..render.explicit import ExplicitRenderer
 from ..render.renderer import Frame
 from ..scene.containers import Scene
+from ..scene.grooms.guides import nearest_points, root_spacing
 
 MAX_INSTANCES = 8_000_000      # ribbons (strand pieces x children): 96 MB of instances, 6-12 s per frame here
 MAX_SEGMENTS = 24              # pieces per strand: a strand keeps its own vertices up to this many
@@ -83,7 +84,6 @@ NEIGHBOUR_CANDIDATES = 16      # a child's blended guides are sought among its r
 CLUMP = 0.25                   # interpolated children: pulled this far toward the nearest guide at the tip
 LENGTH_VARIATION = 0.15        # interpolated children: length 1 - this .. 1 of the blend's
 TIP_WIDTH = 0.2                # interpolated children: width at the tip, fraction of the root's
-SPACING_CLIP = (0.5, 2.0)      # a root disc's radius: the root's nearest-neighbour distance, x median, clipped
 GUIDE_SAMPLES = 64             # pieces of the common arc-length parameter guides are blended on (at least)
 _CHUNK = 32_768                # children per numpy pass: bounds the (chunk, points, guides, 3) temporaries
 
@@ -196,40 +196,6 @@ def resample_guides(strands, n_segments: int) -> np.ndarray:
     return out
 
 
-def _nearest(points: np.ndarray, queries: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """Indices and distances of each query's ``k`` nearest points, nearest first (chunked brute force)."""
-    k = min(k, len(points))
-    idx = np.empty((len(queries), k), np.int64)
-    dist = np.empty((len(queries), k))
-    p2 = (points ** 2).sum(axis=1)
-    step = max(1, 4_000_000 // max(1, len(points)))
-    for a in range(0, len(queries), step):
-        q = queries[a:a + step]
-        d2 = np.maximum((q ** 2).sum(axis=1)[:, None] - 2.0 * q @ points.T + p2[None, :], 0.0)
-        part = np.argpartition(d2, k - 1, axis=1)[:, :k] if k < len(points) else np.tile(np.arange(k), (len(q), 1))
-        pd = np.take_along_axis(d2, part, 1)
-        order = np.argsort(pd, axis=1, kind="stable")
-        idx[a:a + step] = np.take_along_axis(part, order, 1)
-        dist[a:a + step] = np.sqrt(np.take_along_axis(pd, order, 1))
-    return idx, dist
-
-
-def root_spacing(roots: np.ndarray) -> np.ndarray:
-    """Each root's distance to its nearest other root (exact duplicates skipped), clipped to
-    ``SPACING_CLIP`` x the median: the radius over which a guide's children are spread. A lone root gets the
-    median, a groom of one strand a thousandth of its size (there is no spacing to read)."""
-    roots = np.asarray(roots, np.float64)
-    S = len(roots)
-    scale = float(np.ptp(roots, axis=0).max()) if S else 0.0
-    if S < 2 or scale <= 0.0:
-        return np.full(S, 1e-3 * max(scale, 1.0))
-    _, dist = _nearest(roots, roots, min(S, 8))
-    dist = np.where(dist > 1e-9 * scale, dist, np.inf)         # self and duplicates say nothing of spacing
-    nn = dist.min(axis=1)
-    m = float(np.median(nn[np.isfinite(nn)])) if np.isfinite(nn).any() else 1e-3 * scale
-    return np.clip(np.where(np.isfinite(nn), nn, m), SPACING_CLIP[0] * m, SPACING_CLIP[1] * m)
-
-
 def _first_directions(guides: np.ndarray) -> np.ndarray:
     """Unit direction each guide leaves its root in: its first piece, else root to tip, else +Z."""
     d = guides[:, 1] - guides[:, 0]
@@ -300,11 +266,11 @@ def interpolate(guides: np.ndarray, roots: np.ndarray, n_segments: int, *, paren
     s = np.linspace(0.0, 1.0, n_segments + 1)
     out = np.empty((N, n_segments + 1, 3))
     if parents is not None:
-        cand, _ = _nearest(g_roots, g_roots, min(S, NEIGHBOUR_CANDIDATES))
+        cand, _ = nearest_points(g_roots, g_roots, min(S, NEIGHBOUR_CANDIDATES))
     for a in range(0, N, _CHUNK):
         q = roots[a:a + _CHUNK]
         if parents is None:
-            idx, dist = _nearest(g_roots, q, kk + 1)
+            idx, dist = nearest_points(g_roots, q, kk + 1)
         else:
             c = cand[np.asarray(parents[a:a + _CHUNK], np.int64)]                  # (n, C)
             d = np.linalg.norm(g_roots[c] - q[:, None], axis=2)

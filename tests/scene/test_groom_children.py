@@ -63,7 +63,7 @@ def test_children_are_rooted_on_a_disc_around_their_guide():
     roots, parents = children.child_roots(guides, 5, seed=3)
     S = len(guides)
     assert roots.shape == (5 * S, 3) and parents.tolist() == list(range(S)) * 5       # child-major
-    spacing = children.local_spacing(guides[:, 0])
+    spacing = children.root_spacing(guides[:, 0])
     off = roots - guides[parents, 0]
     first = guides[:, 1] - guides[:, 0]
     first /= np.linalg.norm(first, axis=1, keepdims=True)

@@ -33,47 +33,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .guides import _CHUNK_ELEMS
+from .guides import _CHUNK_ELEMS, nearest_points, root_spacing
 
 NEIGHBOURS = 4                 # guides blended per child (Blender's Interpolate Curves node: Max Neighbors)
 CANDIDATES = 16                # a child's guides are sought among its own guide's nearest this many
-SPACING_CLIP = (0.5, 2.0)      # a root disc's radius: the root's nearest-neighbour distance, x median, clipped
 GOLDEN_ANGLE = math.pi * (3.0 - math.sqrt(5.0))
 MAX_CHILDREN = 31              # per guide (scene.groom_children's bound): 32 containers per strand
-
-
-def _nearest(points: np.ndarray, queries: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
-    """(indices, distances) of each query's ``k`` nearest points, nearest first; chunked brute force."""
-    k = min(k, len(points))
-    idx = np.empty((len(queries), k), np.int64)
-    dist = np.empty((len(queries), k))
-    p2 = (points ** 2).sum(axis=1)
-    step = max(1, _CHUNK_ELEMS // max(1, len(points)))
-    for a in range(0, len(queries), step):
-        q = queries[a:a + step]
-        d2 = np.maximum((q ** 2).sum(axis=1)[:, None] - 2.0 * q @ points.T + p2[None, :], 0.0)
-        part = np.argpartition(d2, k - 1, axis=1)[:, :k] if k < len(points) else np.tile(np.arange(k), (len(q), 1))
-        pd = np.take_along_axis(d2, part, 1)
-        order = np.argsort(pd, axis=1, kind="stable")
-        idx[a:a + step] = np.take_along_axis(part, order, 1)
-        dist[a:a + step] = np.sqrt(np.take_along_axis(pd, order, 1))
-    return idx, dist
-
-
-def local_spacing(roots: np.ndarray) -> np.ndarray:
-    """Each root's distance to its nearest other root (duplicates skipped), clipped to ``SPACING_CLIP`` x
-    the median. Without two distinct roots there is no spacing to read: 1e-3 of the roots' extent (or 1e-3)."""
-    roots = np.asarray(roots, np.float64)
-    S = len(roots)
-    size = float(np.ptp(roots, axis=0).max()) if S else 0.0
-    if S < 2 or size <= 0.0:
-        return np.full(S, 1e-3 * max(size, 1.0))
-    _, dist = _nearest(roots, roots, min(S, 8))
-    dist = np.where(dist > 1e-9 * size, dist, np.inf)
-    nn = dist.min(axis=1)
-    finite = np.isfinite(nn)
-    m = float(np.median(nn[finite])) if finite.any() else 1e-3 * size
-    return np.clip(np.where(finite, nn, m), SPACING_CLIP[0] * m, SPACING_CLIP[1] * m)
 
 
 def _root_frames(guides: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -98,7 +63,7 @@ def child_roots(guides: np.ndarray, per_guide: int, seed: int = 0) -> tuple[np.n
     if per_guide < 1 or S == 0:
         return np.zeros((0, 3)), np.zeros(0, np.int64)
     ex, ey = _root_frames(guides)
-    spacing = local_spacing(guides[:, 0])
+    spacing = root_spacing(guides[:, 0])
     turn = np.random.default_rng(seed).random(S) * 2.0 * np.pi
     j = np.arange(1, per_guide + 1)
     # the guide is the spiral's point 0, at the centre; its children fill the rest evenly by area
@@ -123,7 +88,7 @@ def blend(guides: np.ndarray, roots: np.ndarray, parents: np.ndarray,
     size = max(float(np.ptp(g_roots, axis=0).max()) if S else 0.0, 1e-300)
     tiny = 1e-12 * size
     kk = min(k, S)
-    cand, _ = _nearest(g_roots, g_roots, min(S, max(CANDIDATES, kk + 1)))
+    cand, _ = nearest_points(g_roots, g_roots, min(S, max(CANDIDATES, kk + 1)))
     out = np.empty((N, M, 3))
     nearest = np.empty(N, np.int64)
     step = max(1, _CHUNK_ELEMS // max(1, kk * M * 3))

@@ -18,6 +18,7 @@ from .groom import Groom, GroomError
 # neighbour searches on 100k+ strands stay in bounded memory whatever the groom size; chunks this small also
 # stay in cache, which measured 7x faster than 32 MiB chunks on harolongo's roots.
 _CHUNK_ELEMS = 1 << 18
+SPACING_CLIP = (0.5, 2.0)      # a root disc's radius: the root's nearest-neighbour distance, x median, clipped
 
 
 def resample_many(strands: Sequence[np.ndarray], n_segments: int) -> np.ndarray:
@@ -82,6 +83,41 @@ def _nearest_distances(points: np.ndarray, queries: np.ndarray, exclude: np.ndar
         d2[d2 <= tiny * tiny] = np.inf
         out[a:a + step] = np.sqrt(np.maximum(d2.min(axis=1), 0.0))
     return out
+
+
+def nearest_points(points: np.ndarray, queries: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """(indices, distances) of each query's ``k`` nearest points, nearest first; chunked brute force."""
+    k = min(k, len(points))
+    idx = np.empty((len(queries), k), np.int64)
+    dist = np.empty((len(queries), k))
+    p2 = (points ** 2).sum(axis=1)
+    step = max(1, _CHUNK_ELEMS // max(1, len(points)))
+    for a in range(0, len(queries), step):
+        q = queries[a:a + step]
+        d2 = np.maximum((q ** 2).sum(axis=1)[:, None] - 2.0 * q @ points.T + p2[None, :], 0.0)
+        part = np.argpartition(d2, k - 1, axis=1)[:, :k] if k < len(points) else np.tile(np.arange(k), (len(q), 1))
+        pd = np.take_along_axis(d2, part, 1)
+        order = np.argsort(pd, axis=1, kind="stable")
+        idx[a:a + step] = np.take_along_axis(part, order, 1)
+        dist[a:a + step] = np.sqrt(np.take_along_axis(pd, order, 1))
+    return idx, dist
+
+
+def root_spacing(roots: np.ndarray) -> np.ndarray:
+    """Each root's distance to its nearest other root (duplicates skipped), clipped to ``SPACING_CLIP`` x
+    the median: the radius over which a guide's children (and the looks bench's reference strands) are
+    spread. Without two distinct roots there is no spacing to read: 1e-3 of the roots' extent (or 1e-3)."""
+    roots = np.asarray(roots, np.float64)
+    S = len(roots)
+    size = float(np.ptp(roots, axis=0).max()) if S else 0.0
+    if S < 2 or size <= 0.0:
+        return np.full(S, 1e-3 * max(size, 1.0))
+    _, dist = nearest_points(roots, roots, min(S, 8))
+    dist = np.where(dist > 1e-9 * size, dist, np.inf)
+    nn = dist.min(axis=1)
+    finite = np.isfinite(nn)
+    m = float(np.median(nn[finite])) if finite.any() else 1e-3 * size
+    return np.clip(np.where(finite, nn, m), SPACING_CLIP[0] * m, SPACING_CLIP[1] * m)
 
 
 def default_radius(roots: np.ndarray, seed: int = 0, max_queries: int = 1024) -> float:
