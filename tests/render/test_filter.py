@@ -5,24 +5,20 @@ its coverage function is the numpy model's (app.reference.footprint_coverage).""
 
 from __future__ import annotations
 
-import shutil
-import tempfile
-from pathlib import Path
 
-import moderngl
 import numpy as np
 import pytest
 
 from app import reference
 from app.bench.antialias import CURLED, FAR_FUR_DISTANCE, changed_share
 from app.bench.extremes import FloatRenderer
-from app.gl.shaders import ProgramCache, glsl_root
+from app.gl.shaders import ProgramCache
 from app.params import ParamError
 from app.presets import find_preset
 from app.render.camera import Camera
 from app.render.renderer import filtered
 from app.scene.generators import build_scene
-from tests.support.paths import GLSL_HARNESS
+from tests.support.glsl_harness import run_fragment
 
 SIZE = (160, 90)
 ON = {"quality.filter": "coverage"}
@@ -177,26 +173,10 @@ void main() {
 
 
 def test_glsl_coverage_matches_numpy(ctx):
-    tmp = Path(tempfile.mkdtemp())
-    try:
-        shutil.copytree(glsl_root(), tmp / "glsl")
-        (tmp / "glsl" / "coverage_harness.frag").write_text(HARNESS)
-        (tmp / "glsl" / "fullscreen.vert").write_text((GLSL_HARNESS / "fullscreen.vert").read_text())
-        prog = ProgramCache(tmp / "glsl").get(ctx, "fullscreen.vert", "coverage_harness.frag")
+    def setup(prog):
         prog["uRange"].value = (0.5, 0.05)
-        W, H = 64, 64
-        tex = ctx.texture((W, H), 4, dtype="f4")
-        fbo = ctx.framebuffer([tex])
-        fbo.use()
-        ctx.viewport = (0, 0, W, H)
-        ctx.disable(moderngl.CULL_FACE | moderngl.DEPTH_TEST | moderngl.BLEND)
-        ctx.vertex_array(prog, []).render(vertices=3)
-        v = np.frombuffer(tex.read(), np.float32).reshape(H, W, 4).astype(np.float64)
-        ctx.framebuffer(ctx.renderbuffer((1, 1))).use()
-        fbo.release()
-        tex.release()
-    finally:
-        shutil.rmtree(tmp)
+
+    v = run_fragment(ctx, HARNESS, (64, 64), setup)
     got, step, x, w = v[..., 0], v[..., 1], v[..., 2], v[..., 3]
     assert ((got >= 0) & (got <= 1)).all() and ((step == 0) | (step == 1)).all()
     assert np.allclose(got, reference.footprint_coverage(x, 0.05, w), atol=1e-5)

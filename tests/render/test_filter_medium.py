@@ -7,20 +7,16 @@ from __future__ import annotations
 
 import math
 import re
-import shutil
-import tempfile
-from pathlib import Path
 
-import moderngl
 import numpy as np
 import pytest
 
 from app import fibers, reference
-from app.gl.shaders import ProgramCache, glsl_root
+from app.gl.shaders import glsl_root
 from app.presets import find_preset
 from app.render.camera import Camera
 from app.scene.generators import build_scene
-from tests.support.paths import GLSL_HARNESS
+from tests.support.glsl_harness import run_fragment
 
 SIZE = (160, 90)
 ON = {"quality.filter": "coverage"}
@@ -155,31 +151,17 @@ void main() {
 @pytest.mark.parametrize("rho, n, rf", [(0.95, 360, 0.01), (0.833, 24, 0.1), (0.5, 40, 0.004)],
                          ids=["closed", "fur-ball", "open"])
 def test_glsl_medium_matches_numpy(ctx, rho, n, rf):
-    tmp = Path(tempfile.mkdtemp())
-    try:
-        shutil.copytree(glsl_root(), tmp / "glsl")
-        (tmp / "glsl" / "medium_harness.frag").write_text(HARNESS)
-        (tmp / "glsl" / "fullscreen.vert").write_text((GLSL_HARNESS / "fullscreen.vert").read_text())
-        prog = ProgramCache(tmp / "glsl").get(ctx, "fullscreen.vert", "medium_harness.frag")
+    # the footprint where the medium starts to blend in (medium_weight): COVER_MEDIUM_FROM slots of a
+    # container of n fibers in 4 rings
+    start = 0.5 * reference.COVER_MEDIUM_FROM * math.pi / (n / 4)
+
+    def setup(prog):
         prog["uRho"].value, prog["uN"].value, prog["uRf"].value = rho, n, rf
-        # the footprint where the medium starts to blend in (medium_weight): COVER_MEDIUM_FROM slots of a
-        # container of n fibers in 4 rings
-        start = 0.5 * reference.COVER_MEDIUM_FROM * math.pi / (n / 4)
         prog["uFrom"].value = start
         prog["uRings"].value = 4
-        W, H = 64, 64
-        tex = ctx.texture((W, H), 4, dtype="f4")
-        fbo = ctx.framebuffer([tex])
-        fbo.use()
-        ctx.viewport = (0, 0, W, H)
-        ctx.disable(moderngl.CULL_FACE | moderngl.DEPTH_TEST | moderngl.BLEND)
-        ctx.vertex_array(prog, []).render(vertices=3)
-        v = np.frombuffer(tex.read(), np.float32).reshape(H, W, 4).astype(np.float64)
-        ctx.framebuffer(ctx.renderbuffer((1, 1))).use()
-        fbo.release()
-        tex.release()
-    finally:
-        shutil.rmtree(tmp)
+
+    W, H = 64, 64
+    v = run_fragment(ctx, HARNESS, (W, H), setup)
     y, x = np.mgrid[0:H, 0:W].astype(np.float64)
     d, w = x / 40.0, np.exp2(y / 8.0 - 5.0) * start
     f = reference.ring_fence(rho, n, rf)

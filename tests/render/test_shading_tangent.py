@@ -9,23 +9,18 @@ from __future__ import annotations
 
 import hashlib
 import math
-import shutil
-import tempfile
-from pathlib import Path
 
-import moderngl
 import numpy as np
 import pytest
 
 from app import reference
 from app.bench.highlights import height_blended_axis, joint_blended_axis, joint_excess, turn_with
-from app.gl.shaders import ProgramCache, glsl_root
 from app.params import Params
 from app.render.camera import Camera
 from app.render.explicit import ExplicitRenderer
 from app.scene.containers import container_rows
 from app.scene.generators import build_scene
-from tests.support.paths import GLSL_HARNESS
+from tests.support.glsl_harness import run_fragment
 
 
 def _unit(v):
@@ -97,30 +92,14 @@ void main() {
 
 
 def _glsl(ctx, seg, points, normals):
-    tmp = Path(tempfile.mkdtemp())
-    try:
-        shutil.copytree(glsl_root(), tmp / "glsl")
-        (tmp / "glsl" / "tangent_harness.frag").write_text(HARNESS)
-        (tmp / "glsl" / "fullscreen.vert").write_text((GLSL_HARNESS / "fullscreen.vert").read_text())
-        prog = ProgramCache(tmp / "glsl").get(ctx, "fullscreen.vert", "tangent_harness.frag")
+    def setup(prog):
         prog["uN0"].value, prog["uN1"].value, prog["uH"].value = tuple(seg.n0), tuple(seg.n1), seg.h
         prog["uPoint"].write(np.asarray(points, np.float32).tobytes())
         prog["uNormal"].write(np.asarray(normals, np.float32).tobytes())
         prog["uFiber"].value = (0.0, 0.0, 1.0)
-        W, H = len(points), 2
-        tex = ctx.texture((W, H), 4, dtype="f4")
-        fbo = ctx.framebuffer([tex])
-        fbo.use()
-        ctx.viewport = (0, 0, W, H)
-        ctx.disable(moderngl.CULL_FACE | moderngl.DEPTH_TEST | moderngl.BLEND)
-        ctx.vertex_array(prog, []).render(vertices=3)
-        v = np.frombuffer(tex.read(), np.float32).reshape(H, W, 4)[..., :3].astype(np.float64)
-        ctx.framebuffer(ctx.renderbuffer((1, 1))).use()
-        fbo.release()
-        tex.release()
-        return v[0], v[1]
-    finally:
-        shutil.rmtree(tmp)
+
+    v = run_fragment(ctx, HARNESS, (len(points), 2), setup)[..., :3]
+    return v[0], v[1]
 
 
 def test_glsl_tangent_is_its_numpy_twin_and_continuous(ctx):
