@@ -289,8 +289,9 @@ class Renderer:
             "uTipWidth": p["strand.tip_width"], "uTaperStart": p["strand.taper_start"],
             "uFrizz": sh.frizz, "uFrizzAmplitude": sh.frizz_amplitude, "uNoiseAmplitude": sh.noise_amplitude,
             "uNoiseFrequency": sh.noise_frequency,
-            # the filtered mode's tent footprint: half-width quality.filter_width pixels, per unit distance
-            "uFootprint": p["quality.filter_width"] * 2.0 * th / h,
+            # the filtered mode's tent footprint: half-width quality.filter_width pixels, per unit distance;
+            # a tile's camera shortens up by the tile's share of the view, so |up| keeps the view's pixel
+            "uFootprint": p["quality.filter_width"] * 2.0 * th * float(np.linalg.norm(up)) / h,
         }
         for name, value in values.items():
             if name in prog:
