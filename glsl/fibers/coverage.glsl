@@ -350,9 +350,15 @@ CoverSums cover_scan(Segment seg, UnitRay ur, RayPath rp, float wu, vec2 l2, vec
         float reach = ring.w + grow + EPS_ANGLE;
         int n = uRingN[i].x;
         int dir = int(rp.sigma);
+        // A visit counts only the fibers on its side of the closest approach (mine, below): the front half
+        // of the ring (psi in [-pi, 0]) or the back half ([0, pi]), give or take a fiber's angular offset
+        // from its slot. Where the footprint reaches past a ring's inner side (grow = pi) the window would
+        // be the whole ring on both visits, every fiber tested twice to count it once.
+        float halfLo = (back ? 0.0 : -3.14159265) - ring.w - EPS_ANGLE;
+        float halfHi = (back ? 3.14159265 : 0.0) + ring.w + EPS_ANGLE;
         // (the slots' angles are the ring's own: the twist turns the ray the other way)
-        float first = (rp.thD - sh.tau + rp.sigma * (psiA - reach) - ring.z) * ringB.z;
-        float last = (rp.thD - sh.tau + rp.sigma * (psiB + reach) - ring.z) * ringB.z;
+        float first = (rp.thD - sh.tau + rp.sigma * max(psiA - reach, halfLo) - ring.z) * ringB.z;
+        float last = (rp.thD - sh.tau + rp.sigma * min(psiB + reach, halfHi) - ring.z) * ringB.z;
         int j0 = dir > 0 ? int(ceil(first)) : int(floor(first));
         int j1 = dir > 0 ? int(floor(last)) : int(ceil(last));
         // Thinning: where the footprint holds more than COVER_SAMPLES of the ring's slots, every m-th slot
