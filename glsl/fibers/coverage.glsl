@@ -310,6 +310,18 @@ ArcShape arc_shape(Segment seg, UnitRay ur, RayPath rp, float rho, bool back, in
     return a;
 }
 
+// floor(a / b) for b > 0, in float (llvmpipe divides integers lane by lane; exact for |a| < 2^24)
+int floor_div(int a, int b) {
+    return int(floor(float(a) / float(b)));
+}
+
+// The kept slots of a thinned ring (every m-th of its n, keptRing of them) at or below slot x, x counted on
+// past the ring's end or before its start (so negative below slot 0): where a window's first and last are.
+int cover_kept_upto(int x, int n, int m, int keptRing) {
+    int q = floor_div(x, n);
+    return q * keptRing + min(floor_div(x - q * n, m) + 1, keptRing);
+}
+
 // The scan: the fibers themselves, ring by ring in ray order (see cover_container).
 CoverSums cover_scan(Segment seg, UnitRay ur, RayPath rp, float wu, vec2 l2, vec2 density, bool on,
                      inout int tests) {
@@ -362,25 +374,33 @@ CoverSums cover_scan(Segment seg, UnitRay ur, RayPath rp, float wu, vec2 l2, vec
         int j0 = dir > 0 ? int(ceil(first)) : int(floor(first));
         int j1 = dir > 0 ? int(floor(last)) : int(ceil(last));
         // Thinning: where the footprint holds more than COVER_SAMPLES of the ring's slots, every m-th slot
-        // (m a power of two that divides n, from the footprint's width alone, so neighbouring pixels thin
-        // alike) stands for m fibers: it covers 1 - (1 - a)^m. The slots kept are fixed on the ring (j a
-        // multiple of m), so a fiber enters and leaves the footprint at its tent's edges as unthinned.
+        // (m a power of two, from the footprint's width alone, so neighbouring pixels thin alike) stands for
+        // the m fibers from it on: it covers 1 - (1 - a)^m. The slots kept are fixed on the ring (j a multiple
+        // of m, 0 <= j < n), so a fiber enters and leaves the footprint at its tent's edges as unthinned;
+        // where m does not divide n the last one stands for the n mod m left (groom_auto's even spacing
+        // gives rings of any count: sintel's 19, 26, 30, 30, 24, 14, 5 fibers thinned no more than by 2).
         float slots = 2.0 * grow * ringB.z + 1.0;
         int m = 1 << clamp(int(ceil(log2(slots / float(COVER_SAMPLES)))), 0, 6);
-        m = min(m, n & -n);                             // n & -n: the largest power of two dividing n
-        int u0 = dir > 0 ? m * int(ceil(float(j0) / float(m))) : m * int(floor(float(j0) / float(m)));
-        int spread = (j1 - u0) * dir;
-        int kept = spread >= 0 ? min(spread / m + 1, n / m) : 0;
+        m = min(m, max(n, 1));
+        int keptRing = (n + m - 1) / m;                 // the kept slots around the ring: 0, m, .., n - 1
+        // the window [lo, hi] in slots counted on past the ring's end (or before its start), and the
+        // kept slots in it, as indices g into the kept slots counted on alike
+        bool nonEmpty = (j1 - j0) * dir >= 0;
+        int lo = dir > 0 ? j0 : j1;
+        int hi = dir > 0 ? j1 : j0;
+        int gLo = cover_kept_upto(lo - 1, n, m, keptRing);
+        int gHi = cover_kept_upto(hi, n, m, keptRing) - 1;
+        int kept = nonEmpty ? min(gHi + 1 - gLo, keptRing) : 0;
         // past the cap, the middle of the window: the fibers nearest the footprint's centre line
         int count = reached ? min(kept, COVER_CAP) : 0;
-        u0 += dir * m * ((kept - count) / 2);
-        float mf = float(m);
+        int g0 = dir > 0 ? gLo + (kept - count) / 2 : gHi - (kept - count) / 2;
         uint ringKey = ring_key(uSeed, seg.guide, i);
         for (int t = 0; t < count; t++) {
             gIters++;
             tests++;
-            int uj = u0 + dir * m * t;
-            int j = uj - n * int(floor(float(uj) / float(n)));
+            int g = g0 + dir * t;
+            int j = m * (g - keptRing * floor_div(g, keptRing));
+            float mf = float(min(m, n - j));
             vec2 c;
             float vEnd;
             fiber_center_keyed(ring, ringB, ringKey, i, j, c, vEnd);
