@@ -52,6 +52,9 @@
 #ifndef COVER_CONTAINER_SAMPLES
 #define COVER_CONTAINER_SAMPLES 18.0
 #endif
+#ifndef COVER_BUDGET_THIN
+#define COVER_BUDGET_THIN 4
+#endif
 #ifndef COVER_SAMPLES_MIN
 #define COVER_SAMPLES_MIN 3.0
 #endif
@@ -393,7 +396,11 @@ CoverSums cover_scan(Segment seg, UnitRay ur, RayPath rp, float wu, vec2 l2, vec
         // where m does not divide n the last one stands for the n mod m left (groom_auto's even spacing
         // gives rings of any count: sintel's 19, 26, 30, 30, 24, 14, 5 fibers thinned no more than by 2).
         float slots = 2.0 * grow * ringB.z + 1.0;
-        int m = 1 << clamp(int(ceil(log2(slots / samples))), 0, 6);
+        // (the rings' budget thins a kept slot to at most COVER_BUDGET_THIN fibers past what COVER_SAMPLES
+        // asks: where the footprint spans many fibers a ring, the default preset's 360, twice the lumps
+        // showed against the fibers themselves, tests/render/test_explicit_filter.py)
+        int m = max(1 << clamp(int(ceil(log2(slots / float(COVER_SAMPLES)))), 0, 6),
+                    min(1 << clamp(int(ceil(log2(slots / samples))), 0, 6), COVER_BUDGET_THIN));
         m = min(m, max(n, 1));
         int keptRing = (n + m - 1) / m;                 // the kept slots around the ring: 0, m, .., n - 1
         // the window [lo, hi] in slots counted on past the ring's end (or before its start), and the
