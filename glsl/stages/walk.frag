@@ -176,7 +176,7 @@ void main() {
     // starts nearer than all of it, else under (exact for two layers in either order).
     float front = accum.a > 0.0 ? imageLoad(uAccumFront, px).x : INF;
     float tc = unit_to_world_t(seg, uf, cb.s);
-    vec4 mine = vec4(cb.alpha * pow(sh.color, vec3(2.2)), cb.alpha);
+    vec4 mine = vec4(cb.alpha * sh.linear, cb.alpha);
     bool over = tc < front;
     accum = cb.alpha > 0.0 ? (over ? mine + (1.0 - cb.alpha) * accum : accum + (1.0 - accum.a) * mine) : accum;
     imageStore(uAccum, px, accum);
