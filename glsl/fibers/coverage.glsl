@@ -394,7 +394,8 @@ CoverSums cover_scan(Segment seg, UnitRay ur, RayPath rp, float wu, vec2 l2, vec
         // the m fibers from it on: it covers 1 - (1 - a)^m. The slots kept are fixed on the ring (j a multiple
         // of m, 0 <= j < n), so a fiber enters and leaves the footprint at its tent's edges as unthinned;
         // where m does not divide n the last one stands for the n mod m left (groom_auto's even spacing
-        // gives rings of any count: sintel's 19, 26, 30, 30, 24, 14, 5 fibers thinned no more than by 2).
+        // gives rings of any count; when m had to divide n, sintel's 19, 26, 30, 30, 24, 14, 5 fibers were
+        // thinned by 2 at most).
         float slots = 2.0 * grow * ringB.z + 1.0;
         // (the rings' budget thins a kept slot to at most COVER_BUDGET_THIN fibers past what COVER_SAMPLES
         // asks: where the footprint spans many fibers a ring, the default preset's 360, twice the lumps
