@@ -531,7 +531,7 @@ def footprint_coverage(x, r, w):
 
 # --- the filtered mode's medium (glsl/fibers/coverage.glsl: ring_fence .. cover_medium) --------------------
 # The shader's constants (#define there; tests/render/test_filter.py holds them equal).
-COVER_OPAQUE = 0.03
+COVER_OPAQUE = 0.06
 COVER_MEDIUM_FROM = 12.0
 COVER_MEDIUM_FULL = 20.0
 COVER_TENT_MIN = 0.01

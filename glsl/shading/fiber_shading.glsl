@@ -36,6 +36,7 @@ struct Shaded {
     bool hit;
     float t;
     vec3 color;
+    vec3 linear;    // color before the display gamma (the filtered mode composites it)
     vec3 N;
     uvec4 id;
 };
@@ -137,7 +138,8 @@ Shaded shade_fiber_at(Segment seg, UnitRay ur, FiberHit hit, vec3 P, vec4 given,
                                          SHADOW_MODE == 0 ? 0.0 : uShadowDensity * uFiberDensity);
     vec3 radiance = shade_lights(T, Ns, V, color, roughness, occlusion,
                                  given.z >= 0.0 ? given.z : light_transmittance(seg, ur, hit, P, uLightDir), cs);
-    o.color = tone_map(radiance);
+    o.linear = tone_map_linear(radiance);
+    o.color = pow(o.linear, vec3(1.0 / 2.2));
     return o;
 }
 

@@ -1,5 +1,5 @@
 // light.glsl: the lights every shading model sees, and the tone map.
-//   vec3 tone_map(vec3 radiance)      exposure, Reinhard, then sRGB-ish gamma
+//   vec3 tone_map(vec3 radiance)      exposure, Reinhard, then sRGB-ish gamma (tone_map_linear: before it)
 //   vec3 shade_lights(vec3 T, vec3 N, vec3 V, vec3 color, float roughness, float occlusion,
 //                     float keyTransmittance, ContainerShadow cs)
 // The key light is directional (the user rotates it) and its shadow comes from the caller (traced or
@@ -31,10 +31,15 @@ uniform int uLightCount;        // lights besides the key in uLightDirs/uLightCo
 uniform vec3 uLightDirs[MAX_LIGHTS];
 uniform vec3 uLightColors[MAX_LIGHTS];  // linear RGB times intensity
 
-vec3 tone_map(vec3 c) {
+// before the display gamma: what the filtered mode composites (linear light)
+vec3 tone_map_linear(vec3 c) {
     c *= uExposureScale;
     c = c / (1.0 + c);                              // Reinhard: highlights roll off instead of clipping
-    return pow(clamp(c, 0.0, 1.0), vec3(1.0 / 2.2));
+    return clamp(c, 0.0, 1.0);
+}
+
+vec3 tone_map(vec3 c) {
+    return pow(tone_map_linear(c), vec3(1.0 / 2.2));
 }
 
 // Sky over ground: the fill light a fiber facing up sees more of.

@@ -81,7 +81,7 @@ def _true_alpha(lay, guide, d, w, theta, nx=3001):
 def test_medium_alpha_follows_the_fibers(preset, w):
     """The medium's coverage against the actual fibers' coverage, averaged over containers and view
     directions, at offsets across the container: within a few percent of the footprint. The rescale at
-    COVER_OPAQUE is taken off both (the medium's alpha reaches 1 where 3% still shows through)."""
+    COVER_OPAQUE is taken off both (the medium's alpha reaches 1 where COVER_OPAQUE (6%) still shows through)."""
     lay = fibers.ring_layout(find_preset(preset).params)
     rng = np.random.default_rng(7)
     ds = np.linspace(0.0, 1.0 + w, 9)
