@@ -223,22 +223,6 @@ CoverSums cover_sums_empty() {
     return CoverSums(1.0, 0.0, vec2(0.0), 0.0, vec2(0.0), 0.0, 0.0, 0.0, 0.0, 0.0);
 }
 
-// one more fiber (or stretch of medium) of coverage a, behind all that is in u
-void cover_under(inout CoverSums u, float a, vec2 c, vec2 radial, float s, float tint, float rough,
-                 float light, float occlusion) {
-    float w = a * u.T;
-    u.T *= 1.0 - a;
-    u.w += w;
-    u.c += w * c;
-    u.d += w * length(c);
-    u.radial += w * radial;
-    u.s += w * s;
-    u.tint += w * tint;
-    u.rough += w * rough;
-    u.light += w * light;
-    u.occlusion += w * occlusion;
-}
-
 // one more of weight w (a share of the footprint) into u, whatever lies in front of it
 void cover_weigh(inout CoverSums u, float w, vec2 c, vec2 radial, float s, float light, float occlusion) {
     u.w += w;
@@ -248,6 +232,16 @@ void cover_weigh(inout CoverSums u, float w, vec2 c, vec2 radial, float s, float
     u.s += w * s;
     u.light += w * light;
     u.occlusion += w * occlusion;
+}
+
+// one more fiber (or stretch of medium) of coverage a, behind all that is in u
+void cover_under(inout CoverSums u, float a, vec2 c, vec2 radial, float s, float tint, float rough,
+                 float light, float occlusion) {
+    float w = a * u.T;
+    u.T *= 1.0 - a;
+    cover_weigh(u, w, c, radial, s, light, occlusion);
+    u.tint += w * tint;
+    u.rough += w * rough;
 }
 
 // every weight of u times k
