@@ -6,6 +6,7 @@ from __future__ import annotations
 import pytest
 
 from app.gl.context import create_headless
+from app.render.explicit import ExplicitRenderer
 from app.render.renderer import Renderer
 
 
@@ -31,6 +32,17 @@ def renderer(ctx):
     r = Renderer(ctx)
     yield r
     r.release_targets()
+    assert ctx.error == "GL_NO_ERROR", "the test left a GL error behind"
+
+
+@pytest.fixture()
+def explicit(ctx):
+    """The explicit baseline (every fiber a ribbon), released after the test."""
+    assert ctx.error == "GL_NO_ERROR"
+    e = ExplicitRenderer(ctx)
+    yield e
+    e.release()
+    e.release_targets()
     assert ctx.error == "GL_NO_ERROR", "the test left a GL error behind"
 
 

@@ -13,7 +13,7 @@ import pytest
 
 from app import fibers, reference
 from app.params import ParamError, Params
-from app.render.explicit import ExplicitRenderer, compare_frames, plan
+from app.render.explicit import compare_frames, plan
 from tests.support.ids import assert_matches_reference, gpu_ids, reference_ids, setup
 
 SIZE = (128, 96)
@@ -239,15 +239,6 @@ def test_tip_width_one_is_todays_image(renderer):
 
 
 # --- the explicit baseline -------------------------------------------------------------------------
-@pytest.fixture()
-def explicit(ctx):
-    e = ExplicitRenderer(ctx)
-    yield e
-    e.release()
-    e.release_targets()
-    assert ctx.error == "GL_NO_ERROR", "the test left a GL error behind"
-
-
 @pytest.mark.parametrize("name", ["single-pointed", "bent-tapered"])
 def test_explicit_ribbons_taper_like_the_virtual_fibers(renderer, explicit, name):
     """The ribbons place the same fibers, now pointed: the same coverage and ids as the virtual renderer

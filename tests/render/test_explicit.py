@@ -32,16 +32,6 @@ SCENES = [
 ]
 
 
-@pytest.fixture()
-def explicit(ctx):
-    assert ctx.error == "GL_NO_ERROR"
-    e = ExplicitRenderer(ctx)
-    yield e
-    e.release()
-    e.release_targets()
-    assert ctx.error == "GL_NO_ERROR", "the test left a GL error behind"
-
-
 @pytest.mark.parametrize("values", LAYOUTS)
 def test_placement_is_the_reference_placement(values):
     """Same fibers: the numpy generator equals reference.all_fibers (and the per-fiber shading randoms

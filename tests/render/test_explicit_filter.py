@@ -28,16 +28,6 @@ SIZE = (160, 90)
 ON = {"quality.filter": "coverage"}
 
 
-@pytest.fixture()
-def explicit(ctx):
-    assert ctx.error == "GL_NO_ERROR"
-    e = ExplicitRenderer(ctx)
-    yield e
-    e.release()
-    e.release_targets()
-    assert ctx.error == "GL_NO_ERROR", "the test left a GL error behind"
-
-
 def _default(explicit, **values):
     p = find_preset("default").params.replace(**{"quality.supersample": 1, "quality.msaa": 0, **values})
     scene = build_scene(p)
