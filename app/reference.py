@@ -535,6 +535,7 @@ COVER_OPAQUE = 0.06
 COVER_MEDIUM_FROM = 12.0
 COVER_MEDIUM_FULL = 20.0
 COVER_TENT_MIN = 0.01
+COVER_LIGHT_NODES = 5
 
 
 @dataclass(frozen=True)
@@ -643,3 +644,49 @@ def cover_light_path(q, l2):
     with np.errstate(divide="ignore", invalid="ignore"):
         root = np.sqrt(np.maximum(qb * qb - ll * ((q * q).sum(-1) - 1.0), 0.0))
         return np.where(ll > 0.0, (-qb + root) / np.where(ll > 0.0, ll, 1.0), np.inf)
+
+
+
+def medium_face(rho: float, n: float, rf: float, dr: float) -> tuple[float, float, float]:
+    """Where a footprint's rays first meet a ring's fibers, for the medium's light and occlusion
+    (coverage.glsl: medium_face). Where fibers do not overlap (k = n rf / (pi rho) fiber widths over each
+    point of the ring, k <= 1) a ray meets one fiber on its side facing the ray, its centre on the ring;
+    where many overlap, the outermost of them on its outer side, its centre out by the largest of k radial
+    jitters uniform in +-dr, dr (k - 1) / (k + 1); in between both by q = (k - 1) / (k + 1). Returns (the
+    first fibers' centre radius, the radius of the circle the light is taken on, the share 1 - q of the
+    facing side's offset, -rf along the ray, kept)."""
+    k = n * rf / (np.pi * max(rho, 1e-30))
+    q = max(k - 1.0, 0.0) / (k + 1.0)
+    centre = rho + q * q * dr
+    return centre, centre + q * rf, 1.0 - q
+
+
+def medium_arc_light(lay: RingLayout, i: int, d, w, l2, sigma: float, scale: float = 1.0):
+    """The key light's density-estimate transmittance the medium gives ring i's (front, back) arcs
+    (coverage.glsl: cover_medium's light nodes): the path to the wall taken piecewise linear in the angle
+    between COVER_LIGHT_NODES points over the footprint's share (+-w / sqrt 2 about the centre line at d)
+    of the circle medium_face gives, shifted towards the ray by its kept share of the fibers' radius (the
+    back arc's at the same angles on the circle mirrored about rho), exp averaged exactly per piece and
+    weighted by its width across the footprint. The view looks along +x of the cross-section, the centre
+    line at y = d; l2: the light's xy part in that frame; scale: the ellipsoid's factor on the ring's radius
+    and jitter."""
+    rho = scale * float(lay.rho[i])
+    rf = float(lay.ring_radius[i])
+    _, face, keep = medium_face(rho, float(lay.n[i]), rf, scale * float(lay.max_dr[i]))
+    back = max(2.0 * rho - face, 0.0) / face
+    l2 = np.asarray(l2, np.float64)
+    phis = np.linspace(np.arcsin(np.clip((d - 0.70710678 * w) / face, -1, 1)),
+                       np.arcsin(np.clip((d + 0.70710678 * w) / face, -1, 1)), COVER_LIGHT_NODES)
+    ys = face * np.sin(phis)
+    xs = face * np.cos(phis)
+    shift = -keep * rf
+    paths = [np.maximum([cover_light_path(np.array([-x + shift, y]), l2),
+                         cover_light_path(np.array([back * x + shift, back * y]), l2)], 0.0)
+             for x, y in zip(xs, ys)]
+    es = [np.exp(-sigma * np.minimum(p, 1e6)) for p in paths]
+    spread = ys[-1] - ys[0]
+    if spread <= 0.0:
+        return es[-1]
+    light = sum((ys[k] - ys[k - 1]) * exp_mean(sigma, paths[k - 1], paths[k], es[k - 1], es[k])
+                for k in range(1, COVER_LIGHT_NODES))
+    return light / spread

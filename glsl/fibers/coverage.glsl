@@ -189,6 +189,23 @@ float medium_weight(float wu, float fibers, float rings) {
     return smoothstep(COVER_MEDIUM_FROM, COVER_MEDIUM_FULL, 2.0 * wu * fibers / (3.14159265 * max(rings, 1.0)));
 }
 
+// Where a footprint's rays first meet a ring's fibers, for the medium's light and occlusion (cover_medium).
+// Where fibers do not overlap (k = n rf / (pi rho) fiber widths over each point of the ring, k <= 1) a ray
+// meets one fiber, on its side facing the ray, its centre on the ring (rho). Where many overlap it meets
+// the outermost of them on its outer side: that one's centre is out by the largest of k radial jitters
+// uniform in +-dr, dr (k - 1) / (k + 1). In between, both by q = (k - 1) / (k + 1). Returns (the first
+// fibers' centre radius, the radius of the circle the light is taken on, the share 1 - q of the facing
+// side's offset kept). groom_auto's harolongo lays 6.8 fibers of 0.2 radii over each point of its outer
+// ring (q = 0.75) under a self-shadow density of 8 a radius: taken at the ring's radius the medium was 19
+// levels too dark (docs/antialias.md). The default preset's rings: k 1.2 .. 23, the outer one (all a
+// footprint sees) 1.2. Twin: app.reference.medium_face.
+vec3 medium_face(float rho, float n, float rf, float dr) {
+    float k = n * rf / (3.14159265 * max(rho, EPS_DIVISOR));
+    float q = max(k - 1.0, 0.0) / (k + 1.0);
+    float centre = rho + q * q * dr;
+    return vec3(centre, centre + q * rf, 1.0 - q);
+}
+
 // What one container's fibers do to a footprint: alpha = 1 - their transmittance, and the weighted means
 // (weights a_i T_i, front to back) of what shading needs: the centre, the offset from it to the covered
 // part's surface (unit space), the ray parameter, the tint and roughness randoms.
@@ -494,24 +511,32 @@ CoverSums cover_medium(Segment seg, UnitRay ur, RayPath rp, float wu, vec2 l2, v
         float y0 = min(d, rho);
         float xArc = sqrt(max(rho * rho - y0 * y0, 0.0));
         vec2 radial = -rf * dn;                         // the fibers' sides facing the ray, on average
-        float occlusion = mix(1.0, exp(-3.0 * (1.0 - rho)), density.y);
+
         // The light falls off exponentially across an arc, so its value where the centre line meets the
         // ring is not the arc's mean: the path to the wall is taken piecewise linear in the angle around the
-        // ring between COVER_LIGHT_NODES points spread over the footprint's share of the arc (+-w / sqrt 2
+        // ring's face (medium_face: where rays first meet its fibers, mirrored about rho for the back arc)
+        // between COVER_LIGHT_NODES points spread over the footprint's share of the arc (+-w / sqrt 2
         // about the centre line, a uniform spread of the tent's variance), each piece's exp averaged exactly
         // and weighted by its width across the footprint. x: front arc, y: back arc.
-        float phiA = asin(clamp((d - 0.70710678 * wu) / max(rho, EPS_DIVISOR), -1.0, 1.0));
-        float phiB = asin(clamp((d + 0.70710678 * wu) / max(rho, EPS_DIVISOR), -1.0, 1.0));
+        vec3 seen = medium_face(rho, float(uRingN[i].x), rf, sh.e * uRingB[i].x);
+        float face = seen.y;
+        // the occlusion of the first fibers met: the outermost centres of the front arc, the innermost of the back
+        vec2 occlusion = mix(vec2(1.0), exp(-3.0 * (1.0 - vec2(seen.x, 2.0 * rho - seen.x))), density.y);
+        vec2 rad2 = seen.z * radial;
+        float backFace = max(2.0 * rho - face, 0.0) / face;   // the back arc's: its mirror about rho
+        float phiA = asin(clamp((d - 0.70710678 * wu) / face, -1.0, 1.0));
+        float phiB = asin(clamp((d + 0.70710678 * wu) / face, -1.0, 1.0));
         vec2 light = vec2(0.0);
         vec2 pathPrev = vec2(0.0);
         vec2 ePrev = vec2(0.0);
         float yPrev = 0.0;
         for (int k = 0; k < COVER_LIGHT_NODES; k++) {
             float phi = mix(phiA, phiB, float(k) / float(COVER_LIGHT_NODES - 1));
-            float y = rho * sin(phi);
-            vec2 cy = y * out2 + radial;
-            vec2 cx = rho * cos(phi) * dn;
-            vec2 path = max(vec2(cover_light_path(cy - cx, l2, ll), cover_light_path(cy + cx, l2, ll)), 0.0);
+            float y = face * sin(phi);
+            vec2 cy = y * out2 + rad2;
+            vec2 cx = face * cos(phi) * dn;
+            vec2 path = max(vec2(cover_light_path(cy - cx, l2, ll),
+                                 cover_light_path(y * out2 * backFace + rad2 + cx * backFace, l2, ll)), 0.0);
             vec2 e = density.x > 0.0 ? exp(-density.x * min(path, vec2(1e6))) : vec2(1.0);
             float wk = k > 0 ? y - yPrev : 0.0;
             light += k > 0 ? wk * vec2(exp_mean(density.x, pathPrev.x, path.x, ePrev.x, e.x),
@@ -521,7 +546,7 @@ CoverSums cover_medium(Segment seg, UnitRay ur, RayPath rp, float wu, vec2 l2, v
             yPrev = y;
         }
         // (a footprint that meets the ring only at its edge: the light there)
-        float spread = rho * (sin(phiB) - sin(phiA));
+        float spread = face * (sin(phiB) - sin(phiA));
         light = spread > 0.0 ? light / spread : ePrev;
         for (int side = 0; side < 2; side++) {
             float sg = side == 0 ? -1.0 : 1.0;
@@ -534,11 +559,11 @@ CoverSums cover_medium(Segment seg, UnitRay ur, RayPath rp, float wu, vec2 l2, v
             float v = unit_to_v(seg, ur.O.z + s * ur.D.z);
             present *= uLengthJitter > 0.0 ? clamp((1.0 - v) / uLengthJitter, 0.0, 1.0) : float(v < 1.0);
             if (side == 0) {
-                cover_weigh(front, fence * present * open, c, radial, s, light.x, occlusion);
+                cover_weigh(front, fence * present * open, c, radial, s, light.x, occlusion.x);
                 open *= 1.0 - hides * present;
             } else {
                 back = cover_scaled(back, 1.0 - hides * present);      // this back arc is nearer than those
-                cover_weigh(back, fence * present * open, c, radial, s, light.y, occlusion);
+                cover_weigh(back, fence * present * open, c, radial, s, light.y, occlusion.y);
             }
         }
         // the rings inside a closed fence add nothing (every lane of a batch past it: the loop ends)
