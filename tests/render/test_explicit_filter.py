@@ -2,9 +2,10 @@
 glsl/explicit/ribbon.vert/.frag FILTER, cutoff.frag): ribbons widened by the virtual filter's footprint, each
 fragment's alpha the share of the footprint its fiber covers (the same tent: fibers/coverage.glsl,
 app.reference.footprint_coverage), composited by depth bins without sorting. On by default, as the virtual
-renderer's (#16; the unfiltered frame, quality.filter = off, is the one drawn before); the ids stay the opaque ribbons' nearest fiber; a known ribbon's coverage
-adds up to its width; thin fibers hold still where the unfiltered ribbons do not; nothing turns NaN at the
-footprint's extremes; and the filtered explicit frame looks like the filtered virtual one."""
+renderer's (#16; the unfiltered frame, quality.filter = off, is the one drawn before); the ids stay the opaque
+ribbons' nearest fiber; a known ribbon's coverage adds up to its width; thin fibers hold still where the
+unfiltered ribbons do not; nothing turns NaN at the footprint's extremes; and the filtered explicit frame looks
+like the filtered virtual one."""
 
 from __future__ import annotations
 
