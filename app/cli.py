@@ -431,8 +431,8 @@ def make_parser() -> argparse.ArgumentParser:
     t.add_argument("--size", default="640x360", help="WIDTHxHEIGHT (default 640x360)")
     t.add_argument("--mode", choices=("fast", "exact", "brute"))
     t.add_argument("--filter", choices=("off", "coverage"),
-                   help="quality.filter: coverage keeps thin fibers from shimmering as the camera turns "
-                        "(docs/antialias.md)")
+                   help="quality.filter (default coverage): coverage keeps thin fibers from shimmering as the "
+                        "camera turns, off draws one ray a pixel (docs/antialias.md)")
     t.add_argument("--alpha", action="store_true", help="RGBA frames, coverage as alpha")
     t.add_argument("--no-video", action="store_true", help="frames only, even where ffmpeg is installed")
     t.add_argument("--light", action="store_true", help="turn the lights (light.rig_rotation), not the camera")

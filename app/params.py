@@ -250,7 +250,7 @@ SPEC: tuple[Param, ...] = (
       "fiber (reference)", choices=("fast", "exact", "brute")),
     P("quality.supersample", int, 1, "n x n stratified rays per pixel", 1, 4),
     P("quality.msaa", int, 0, "MSAA samples for coverage (0 = off)", 0, 8),
-    P("quality.filter", str, "off", "antialias thin fibers by their coverage: each pixel's ray is a cone and "
+    P("quality.filter", str, "coverage", "antialias thin fibers by their coverage: each pixel's ray is a cone and "
       "every fiber it meets adds the share of its footprint that fiber covers, a container far below the "
       "footprint as a medium (exact mode; ids and depth stay the nearest fiber's); off: one ray, the nearest "
       "fiber's colour",

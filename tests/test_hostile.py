@@ -399,6 +399,9 @@ def test_a_walked_groom_is_estimated_by_the_containers_in_front_of_its_fibers(re
     size = (160, 90)
     for name in ("harolongo.data", "sintel_hair.tfx"):
         p, _ = resolve_params(str(ROOT.parent / "shared" / "hair-data" / name))
+        # the unfiltered walk the model counts: the filtered frame (the default since #16) always walks and
+        # its cost output counts the footprint's scan too (the model scales its seconds: FILTERED_COST)
+        p = p.replace(**{"quality.filter": "off"})
         scene = build_scene(p)
         renderer.set_scene(scene)
         cam = Camera.from_params(p, scene, aspect=size[0] / size[1])
@@ -409,6 +412,24 @@ def test_a_walked_groom_is_estimated_by_the_containers_in_front_of_its_fibers(re
         assert "walked into" in est.summary() and not est.slow
         forced = budget.estimate(p.replace(**{"quality.visibility": "proxies"}), scene, size)
         assert forced.visibility == "proxies" and forced.fragments > est.fragments
+
+
+def test_a_filtered_frame_is_estimated_as_its_walk_times_the_filters_cost():
+    """The filter (the default since #16) walks and scans each pixel's footprint: its estimate is the
+    unfiltered walk's times FILTERED_COST, and says it is filtered; fast mode is not filtered."""
+    from app.render import budget
+    from app.scene.generators import build_scene
+
+    size = (320, 180)
+    p = Params()
+    scene = build_scene(p)
+    on = budget.estimate(p, scene, size)
+    walk = budget.estimate(p.replace(**{"quality.filter": "off", "quality.visibility": "walk"}), scene, size)
+    assert on.filtered and on.visibility == "walk" and not walk.filtered
+    assert on.fiber_tests == walk.fiber_tests
+    assert on.seconds == pytest.approx(budget.FILTERED_COST * walk.seconds)
+    assert "exact mode, filtered:" in on.summary()
+    assert not budget.estimate(p, scene, size, mode="fast").filtered
 
 
 def test_groom_clustering_is_estimated_before_the_scene_is_built(tmp_path):

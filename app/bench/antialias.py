@@ -57,15 +57,17 @@ CURLED = {"shape.curl_amplitude": 0.35, "shape.curl_frequency": 6.0, "shape.curl
 TARGET_STABILITY_PCT = 10.0     # issue 16's targets for the filtered mode
 TARGET_COST = 3.0
 
-# name -> (params overrides, viewer accumulation grid n or 0)
+# name -> (params overrides, viewer accumulation grid n or 0). Every mode sets quality.filter itself: the
+# default is coverage since #16, and the existing modes (none the baseline of every cost) are unfiltered.
+OFF = {"quality.filter": "off"}
 MODES: dict[str, tuple[dict, int]] = {
-    "none": ({}, 0),
-    "supersample 2": ({"quality.supersample": 2}, 0),
-    "supersample 3": ({"quality.supersample": 3}, 0),
-    "supersample 4": ({"quality.supersample": 4}, 0),
-    "msaa 2": ({"quality.msaa": 2}, 0),
-    "msaa 4": ({"quality.msaa": 4}, 0),
-    "viewer accumulation 16": ({}, 4),
+    "none": ({**OFF}, 0),
+    "supersample 2": ({**OFF, "quality.supersample": 2}, 0),
+    "supersample 3": ({**OFF, "quality.supersample": 3}, 0),
+    "supersample 4": ({**OFF, "quality.supersample": 4}, 0),
+    "msaa 2": ({**OFF, "quality.msaa": 2}, 0),
+    "msaa 4": ({**OFF, "quality.msaa": 4}, 0),
+    "viewer accumulation 16": ({**OFF}, 4),
     # issue 16's filtered mode (glsl/fibers/coverage.glsl): a tent footprint of a pixel's half-width
     "filtered": ({"quality.filter": "coverage"}, 0),
     "filtered 0.6 px": ({"quality.filter": "coverage", "quality.filter_width": 0.6}, 0),   # sharper, less still

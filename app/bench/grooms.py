@@ -32,7 +32,7 @@ from ..params import Params
 from ..render.camera import Camera
 from ..render.renderer import Renderer
 from ..scene.containers import Scene
-from .timing import REPO
+from .timing import REPO, unfiltered
 
 Row = dict[str, Any]
 HAIR_DATA = REPO.parent / "shared" / "hair-data"
@@ -75,11 +75,13 @@ def load_scene(name: str, size) -> tuple[Params, Scene, Camera]:
     if name.startswith("Table 4"):
         from .scenes import overlapping_scene
 
-        return overlapping_scene(int(name.split()[3]), 360)
+        p, scene, cam = overlapping_scene(int(name.split()[3]), 360)
+        return unfiltered(p), scene, cam      # the unfiltered traversal's figures (timing.UNFILTERED)
     target = None if name == DEFAULT else str(HAIR_DATA / name)
     if target and not Path(target).exists():
         raise FileNotFoundError(f"{target}: shared hair data not found")
     p, _ = resolve_params(target, [])
+    p = unfiltered(p)                         # the unfiltered traversal's figures (timing.UNFILTERED)
     scene = build_scene(p)
     return p, scene, Camera.from_params(p, scene, aspect=size[0] / size[1])
 

@@ -38,7 +38,7 @@ from ..render.camera import Camera
 from ..render.debug_views import cost_image
 from ..render.renderer import Renderer
 from ..scene.generators import build_scene
-from .timing import short_commit, time_frames
+from .timing import UNFILTERED, short_commit, time_frames, unfiltered
 
 
 def frame_ms(ctx, fn, reps: int) -> tuple[float, float]:
@@ -66,7 +66,7 @@ class Bench:
 
 
 def traversal_section(b: Bench, size, out: Path, bar) -> list[dict]:
-    p = find_preset("default").params
+    p = unfiltered(find_preset("default").params)      # the unfiltered traversal (timing.UNFILTERED)
     scene, cam = b.scene(p)
     rows = []
     images = []
@@ -138,7 +138,7 @@ def shapes_section(b: Bench, size, out: Path, bar) -> list[dict]:
         shapes = {**SHAPES, **(PATTERNS if k == 0 else {})}
         runs = {}
         for name, values in shapes.items():
-            p = Params({"scene.count": 8, **values})
+            p = Params({"scene.count": 8, **values, **UNFILTERED})
             scene = build_scene(p)
             r = Renderer(b.ctx, b.renderer.programs)
             r.set_scene(scene)
@@ -203,7 +203,7 @@ def _shape_extremes(b: Bench, size) -> list[dict]:
     """The sliders' ends: exact and brute once each, one container seen at a slant (every ray climbs)."""
     rows = []
     for name, values in EXTREMES.items():
-        p = Params({"scene.count": 3, **values})
+        p = Params({"scene.count": 3, **values, **UNFILTERED})
         scene = build_scene(p)
         r = Renderer(b.ctx, b.renderer.programs)
         r.set_scene(scene)
@@ -239,7 +239,8 @@ AA = {"none": {}, "supersample 2": {"quality.supersample": 2}, "supersample 3": 
 
 def antialias_section(b: Bench, size, out: Path, bar) -> list[dict]:
     """Thin fibers: move the camera a tenth of a pixel and count what changes."""
-    base = {"scene.count": 12, "fibers.fiber_radius": 0.004, "fibers.phi_step": 1.0}
+    # the antialias options of the unfiltered frame (the filter's own bench: antialias.py)
+    base = {"scene.count": 12, "fibers.fiber_radius": 0.004, "fibers.phi_step": 1.0, **UNFILTERED}
     rows = []
     crops = []
     for name, values in AA.items():
@@ -288,7 +289,7 @@ def hash_section(b: Bench, size, out: Path, bar) -> list[dict]:
 def shadows_section(b: Bench, size, out: Path, bar) -> list[dict]:
     """Self-shadowing: what the density estimate and the traced shadow ray cost, and how far apart
     their pictures are (mean absolute difference of the shaded fibers, 8-bit)."""
-    p0 = find_preset("default").params
+    p0 = unfiltered(find_preset("default").params)     # the unfiltered traversal (timing.UNFILTERED)
     rows, images = [], {}
     for mode in ("off", "density", "traced"):
         p = p0.replace(**{"look.self_shadow": mode})

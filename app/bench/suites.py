@@ -28,7 +28,7 @@ from ..scene.containers import Scene
 from ..scene.generators import build_scene, guide_polyline
 from . import grooms, looks
 from .scenes import overlapping_scene
-from .timing import current_rss_bytes, peak_rss_bytes, time_frames
+from .timing import UNFILTERED, current_rss_bytes, peak_rss_bytes, time_frames, unfiltered
 
 Row = dict[str, Any]
 LEVELS = ("smoke", "quick", "full")
@@ -146,7 +146,7 @@ def memory_configs(level: str) -> list[dict]:
 
 def memory_scene(cfg: dict) -> tuple[Params, Scene, Camera]:
     per = max(1, round(cfg["fibers_target"] / cfg["containers"]))
-    p = Params({"scene.generator": "carpet", "scene.count": cfg["containers"], **layout_for(per)})
+    p = Params({"scene.generator": "carpet", "scene.count": cfg["containers"], **layout_for(per), **UNFILTERED})
     scene = build_scene(p)
     return p, scene, Camera.from_params(p, scene)
 
@@ -211,7 +211,7 @@ def rings_configs(level: str) -> list[dict]:
 def single_container(rings: int, per_ring: int, fiber_radius: float = 0.01) -> tuple[Params, Scene, Camera]:
     p = Params({"scene.generator": "single", "scene.radius": 1.0, "scene.length": 4.0,
                 "fibers.rings": rings, "fibers.phi_step": 360.0 / per_ring,
-                "fibers.fiber_radius": min(fiber_radius, 0.5 / rings), "camera.elevation": 10.0})
+                "fibers.fiber_radius": min(fiber_radius, 0.5 / rings), "camera.elevation": 10.0, **UNFILTERED})
     scene = build_scene(p)
     return p, scene, Camera.from_params(p, scene)
 
@@ -250,6 +250,7 @@ def containers_configs(level: str) -> list[dict]:
 def containers_run(env: Env, cfg: dict) -> list[Row]:
     per_ring = 2 if cfg["fill"] == "empty" else 360
     p, scene, cam = overlapping_scene(cfg["n"], per_ring)
+    p = unfiltered(p)                   # the unfiltered traversal's figures (timing.UNFILTERED)
     size = tuple(cfg["size"])
     env.virtual.set_scene(scene)
     base = {"containers": cfg["n"], "fill": cfg["fill"], "fibers": cfg["n"] * 10 * per_ring}
@@ -289,7 +290,7 @@ def accuracy_configs(level: str) -> list[dict]:
 
 def accuracy_run(env: Env, cfg: dict) -> list[Row]:
     # thesis-like carpet: 10 rings x 360 fibers = 3,600 fibers per container
-    p = Params({"scene.generator": "carpet", "scene.count": cfg["count"], **SHAPES[cfg["shape"]]})
+    p = Params({"scene.generator": "carpet", "scene.count": cfg["count"], **SHAPES[cfg["shape"]], **UNFILTERED})
     scene = build_scene(p)
     cam = Camera.from_params(p, scene)
     size, ref_size = tuple(cfg["size"]), tuple(cfg["ref_size"])
@@ -342,7 +343,7 @@ def _ids3(f: Frame) -> np.ndarray:
 def grid_scene(n: int) -> tuple[Params, Scene, Camera]:
     """``n`` upright containers on a 16 x 9 grid, none hiding another, in a fixed camera frame sized for
     144 of them, so every container keeps the same footprint in pixels whatever ``n`` is."""
-    p = Params({"scene.radius": 0.1, "fibers.phi_step": 3.0})
+    p = Params({"scene.radius": 0.1, "fibers.phi_step": 3.0, **UNFILTERED})
     i = np.arange(n)
     roots = np.stack([np.zeros(n), (i % 16 - 7.5) * 0.45, (i // 16) * 0.6], 1)
     guides = [guide_polyline(r, [0, 0, 1], 0.5, 1, 0.0) for r in roots]
@@ -370,7 +371,7 @@ def scaling_configs(level: str) -> list[dict]:
 def scaling_run(env: Env, cfg: dict) -> list[Row]:
     axis, x, size = cfg["axis"], cfg["x"], tuple(cfg["size"])
     if axis == "resolution":
-        p = Params({"scene.count": 24 if env.level == "full" else 8})
+        p = Params({"scene.count": 24 if env.level == "full" else 8, **UNFILTERED})
         scene = build_scene(p)
         cam = Camera.from_params(p, scene)
     elif axis == "containers":

@@ -21,6 +21,9 @@ counted per pixel, by ``tests/test_hostile.py::test_estimate_follows_the_rendere
   candidate window: what the piece sweeps seen from the axis plus each fiber's reach, plus the curl
   disc and the twist over the segment for curved fibers. A curved test costs ``MAX_SUB + 2`` loop passes.
 * **draws**: the renderer's own ``draw_ranges`` (how often every container is drawn), when it offers it.
+* **the filter** (``quality.filter = coverage``, exact mode: ``renderer.filtered``; the default): the
+  model counts the walk's traversal, not the footprint's scan and compositing; a filtered frame's seconds
+  are its walk's times ``FILTERED_COST``, the filtered frame's measured time over the unfiltered walk's.
 * **seconds**: work over a throughput measured on llvmpipe (2 cores, Mesa 22.3.6): an order of magnitude,
   not a promise; on a GPU it is far faster.
 """
@@ -49,6 +52,12 @@ FRAGMENTS_PER_SECOND = 1.0e6
 # the hierarchy (harolongo 65 over 17.3 levels, sintel 23 over 10.4, Table 4's 200 containers 12.5 over 7.6).
 WALK_ENTERED = 2.0
 WALK_STEPS_PER_LEVEL = 3.0
+# A filtered frame is estimated as the walk it takes (choose_visibility), times this: its process_time over the
+# unfiltered frame's drawn by the same walk, on llvmpipe here: default preset 2.0x at 800x450 (1.4x at 320x180,
+# docs/antialias.md: 46 ms against 62-65), the default preset with shape.ellipsoid = 1 1.4x (800x450), sintel
+# 2.9x (320x180; its unfiltered frame walks too), harolongo 4.6x (one run). 2.0, the default preset's: the
+# dense grooms' filtered frames take more than this says (their walks' steps dominate their estimates).
+FILTERED_COST = 2.0
 
 
 # Scene.from_polylines builds containers one segment at a time: about 0.2 ms each here (5,000 guides of 64
@@ -103,6 +112,7 @@ class WorkEstimate:
     mode: str
     visibility: str = "proxies"     # how the renderer finds each pixel's containers (renderer.choose_visibility)
     walk_steps: float = 0.0         # steps through the hierarchy per ray over the frame (walked frames)
+    filtered: bool = False          # quality.filter = coverage in exact mode: seconds times FILTERED_COST
 
     @property
     def fiber_tests(self) -> float:
@@ -112,7 +122,8 @@ class WorkEstimate:
     def seconds(self) -> float:
         passes = (self.fiber_tests * self.passes_per_test + self.walk_steps * self.rays)
         frag_work = self.fragments * self.rays * (self.draws or 1)
-        return passes / PASSES_PER_SECOND + frag_work / FRAGMENTS_PER_SECOND
+        return (passes / PASSES_PER_SECOND + frag_work / FRAGMENTS_PER_SECOND) * (FILTERED_COST if self.filtered
+                                                                                 else 1.0)
 
     @property
     def slow(self) -> bool:
@@ -122,7 +133,8 @@ class WorkEstimate:
         """One line: what the frame costs and about how long it takes here."""
         draws = f", {self.draws} draws" if self.draws and self.draws > 1 else ""
         found = "containers walked into" if self.visibility == "walk" else "container fragments"
-        return (f"about {_count(self.fiber_tests)} fiber tests ({self.mode} mode: {_count(self.fragments)} "
+        mode = f"{self.mode} mode, filtered" if self.filtered else f"{self.mode} mode"
+        return (f"about {_count(self.fiber_tests)} fiber tests ({mode}: {_count(self.fragments)} "
                 f"{found} of {self.containers:,} containers on {self.pixels:,} pixels, "
                 f"{self.rays} ray{'s' if self.rays > 1 else ''} each, {_count(self.tests_per_ray)} tests per "
                 f"ray{draws}): roughly {_duration(self.seconds)} on llvmpipe")
@@ -137,8 +149,10 @@ def estimate(p: Params, scene, size: tuple[int, int], mode: str | None = None) -
     rays = 1 if mode == "brute" else max(p["quality.supersample"] ** 2, p["quality.msaa"], 1)
     rays *= 2 if p["look.self_shadow"] == "traced" else 1
     tests, passes = _tests_per_ray(p, scene, mode)
+    from .renderer import filtered
+
     return WorkEstimate(width * height, int(scene.n_segments), fragments, rays, tests, passes,
-                        _draws(p, scene, mode, rays), mode, visibility, steps)
+                        _draws(p, scene, mode, rays), mode, visibility, steps, filtered(p, mode))
 
 
 def _containers_met(p: Params, scene, size: tuple[int, int], mode: str) -> tuple[float, str, float]:

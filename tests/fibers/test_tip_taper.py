@@ -150,8 +150,9 @@ def test_tapered_glsl_matches_float64_reference(renderer):
 
 def test_taper_changes_the_image_and_thins_the_tips(renderer):
     """Pointed tips cover fewer pixels than blunt ones, never more (each tapered fiber lies inside its
-    cylinder); the shading normal on the cones leans toward the tips."""
-    base, camera = {**ONE}, {"elevation": 0.0}
+    cylinder); the shading normal on the cones leans toward the tips. The unfiltered frame: the filtered
+    one (the default since #16) ignores the taper (the next test)."""
+    base, camera = {**ONE, "quality.filter": "off"}, {"elevation": 0.0}
     p0, scene, cam = setup(renderer, base, camera)
     blunt = renderer.render(p0, cam, SIZE, outputs=("color", "ids", "geom"))
     p1 = p0.replace(**POINTED)
@@ -163,6 +164,20 @@ def test_taper_changes_the_image_and_thins_the_tips(renderer):
     # partly tapered (tip width 0.5) lies between
     half = renderer.render(p0.replace(**{"strand.tip_width": 0.5}), cam, SIZE, outputs=("ids",))
     assert pointed.hit.sum() < half.hit.sum() < blunt.hit.sum()
+
+
+@pytest.mark.xfail(strict=True, reason="the filtered mode's coverage (glsl/fibers/coverage.glsl) knows no taper: "
+                   "its colour is the blunt fibers' (ids and hits do thin, they are the exact traversal's)")
+def test_the_filtered_colour_shows_the_taper(renderer):
+    """The filter (quality.filter = coverage, the default since #16) should thin the tips too: less coverage,
+    another picture. Measured on this scene (128x96): blunt and pointed filtered frames are equal in every
+    pixel, coverage summed 1484.3 both, where the exact hits go 1423 -> 1176."""
+    p0, _, cam = setup(renderer, {**ONE, "quality.filter": "coverage"}, {"elevation": 0.0})
+    blunt = renderer.render(p0, cam, SIZE, outputs=("color", "ids"))
+    pointed = renderer.render(p0.replace(**POINTED), cam, SIZE, outputs=("color", "ids"))
+    assert pointed.hit.sum() < 0.9 * blunt.hit.sum()                 # the ids thin (exact's)
+    assert pointed.coverage.sum() < 0.95 * blunt.coverage.sum()
+    assert np.any(blunt.color != pointed.color)
 
 
 def test_cone_normal_leans_toward_the_tip(renderer):

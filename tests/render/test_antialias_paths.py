@@ -25,7 +25,10 @@ MODES = {"supersample 2": {"quality.supersample": 2}, "supersample 4": {"quality
 
 @pytest.fixture()
 def default(renderer):
-    p = find_preset("default").params.replace(**{"quality.supersample": 1, "quality.msaa": 0})
+    # the unfiltered paths these tests are about: the filtered mode (the default since #16) always walks
+    # and has its own tests (test_filter.py; its tiles: test_render_region.py, test_lookdev.py)
+    p = find_preset("default").params.replace(**{"quality.supersample": 1, "quality.msaa": 0,
+                                                 "quality.filter": "off"})
     scene = build_scene(p)
     cam = Camera.from_params(p, scene, aspect=SIZE[0] / SIZE[1])
     renderer.set_scene(scene)

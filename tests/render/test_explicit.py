@@ -130,7 +130,9 @@ def test_refusal_keeps_the_previous_scene(explicit):
 
 
 def test_renders_fibers(explicit):
-    p = Params({"scene.count": 8, "fibers.phi_step": 3.0})
+    # the opaque ribbons: the filtered frame (the default since #16) colours pixels without an id too
+    # (test_explicit_filter.py)
+    p = Params({"scene.count": 8, "fibers.phi_step": 3.0, "quality.filter": "off"})
     scene = build_scene(p)
     explicit.set_scene(scene, p)
     cam = Camera.from_params(p, scene)

@@ -1,10 +1,11 @@
 """The explicit baseline's thin-fiber filter (quality.filter = coverage; app/render/explicit.py,
 glsl/explicit/ribbon.vert/.frag FILTER, cutoff.frag): ribbons widened by the virtual filter's footprint, each
 fragment's alpha the share of the footprint its fiber covers (the same tent: fibers/coverage.glsl,
-app.reference.footprint_coverage), composited by depth bins without sorting. Off by default (the unfiltered
-frame is the one drawn before); the ids stay the opaque ribbons' nearest fiber; a known ribbon's coverage
-adds up to its width; thin fibers hold still where the unfiltered ribbons do not; nothing turns NaN at the
-footprint's extremes; and the filtered explicit frame looks like the filtered virtual one."""
+app.reference.footprint_coverage), composited by depth bins without sorting. On by default, as the virtual
+renderer's (#16; the unfiltered frame, quality.filter = off, is the one drawn before); the ids stay the opaque
+ribbons' nearest fiber; a known ribbon's coverage adds up to its width; thin fibers hold still where the
+unfiltered ribbons do not; nothing turns NaN at the footprint's extremes; and the filtered explicit frame looks
+like the filtered virtual one."""
 
 from __future__ import annotations
 
@@ -26,6 +27,7 @@ from app.scene.generators import build_scene
 
 SIZE = (160, 90)
 ON = {"quality.filter": "coverage"}
+OFF = {"quality.filter": "off"}     # the default is coverage (#16): the unfiltered frame is asked for by name
 
 
 def _default(explicit, **values):
@@ -40,18 +42,20 @@ def _default(explicit, **values):
 UNFILTERED_SHA = {"color": "deec55f58ff5c6fd", "ids": "98c05f9cce0d55db"}
 
 
-def test_off_by_default_and_the_ids_stay(gl, explicit):
+def test_on_by_default_and_the_ids_stay(gl, explicit):
     p, _, cam = _default(explicit)
-    assert p["quality.filter"] == "off"
-    off = explicit.render(p, cam, SIZE, outputs=("color", "ids", "geom"))
+    assert p["quality.filter"] == "coverage", "the explicit baseline reads the virtual renderer's default"
+    off = explicit.render(p.replace(**OFF), cam, SIZE, outputs=("color", "ids", "geom"))
     on = explicit.render(p.replace(**ON), cam, SIZE, outputs=("color", "ids", "geom"))
+    default = explicit.render(p, cam, SIZE, outputs=("color", "ids"))
+    assert np.array_equal(default.color, on.color) and np.array_equal(default.ids, on.ids)
     assert off.hit.sum() > 300
     assert np.array_equal(off.ids, on.ids), "the filter changes the colour only: ids are the nearest fiber's"
     assert np.array_equal(off.geom, on.geom)
     diff = np.abs(off.color.astype(np.int32) - on.color.astype(np.int32)).max(-1)
     assert (diff[off.hit] > 8).mean() > 0.2, "the filter should change the thin fibers' colour"
     assert ((on.coverage > 0) & ~off.hit).sum() > 0, "the footprint reaches past the fibers' centres"
-    if "llvmpipe" in gl.renderer:           # the default frame is the one drawn before the filter existed
+    if "llvmpipe" in gl.renderer:           # the unfiltered frame is the one drawn before the filter existed
         for key in ("color", "ids"):
             sha = hashlib.sha256(np.ascontiguousarray(getattr(off, key)).tobytes()).hexdigest()[:16]
             assert sha == UNFILTERED_SHA[key], f"the unfiltered explicit {key} changed"
@@ -62,7 +66,7 @@ def test_thin_fibers_hold_still(explicit):
     filtered ones (measured 75% and 3% at 160x90; docs/antialias.md). The unfiltered frame fails the bound."""
     p, _, cam = _default(explicit)
     share = {}
-    for label, q in (("off", p), ("on", p.replace(**ON))):
+    for label, q in (("off", p.replace(**OFF)), ("on", p.replace(**ON))):
         a = explicit.render(q, cam, SIZE, outputs=("color",))
         b = explicit.render(q, cam, SIZE, outputs=("color",), offset=(0.1, 0.0))
         covered = (a.coverage > 0) | (b.coverage > 0)
@@ -134,7 +138,7 @@ def test_filter_stays_finite_at_extremes(explicit, extreme):
     """Footprints far below a fiber and far above a container, fibers seen end-on: the composite's float
     images hold no NaN or Inf, alpha stays in [0, 1], the ids are the unfiltered frame's."""
     p, _, cam = _default(explicit, **EXTREMES[extreme])
-    off = explicit.render(p, cam, SIZE, outputs=("ids",))
+    off = explicit.render(p.replace(**OFF), cam, SIZE, outputs=("ids",))
     on = explicit.render(p.replace(**ON), cam, SIZE, outputs=("color", "ids"))
     assert np.array_equal(off.ids, on.ids)
     assert np.isfinite(on.coverage).all() and on.coverage.min() >= 0.0 and on.coverage.max() <= 1.0
@@ -162,12 +166,12 @@ def test_filtered_explicit_looks_like_filtered_virtual(ctx, explicit):
         with medium_band(BANDS["scan only"]):
             fv = virtual.render(q, cam, SIZE, outputs=("color",))
         fe = explicit.render(q, cam, SIZE, outputs=("color",))
-        ue = explicit.render(p, cam, SIZE, outputs=("color",))
+        ue = explicit.render(p.replace(**OFF), cam, SIZE, outputs=("color",))
         n = 8
         box = np.zeros(SIZE[::-1])
         for i in range(n):
             for j in range(n):
-                box += virtual.render(p, cam, SIZE, outputs=("ids",), antialias=False,
+                box += virtual.render(p.replace(**OFF), cam, SIZE, outputs=("ids",), antialias=False,
                                       offset=((i + 0.5) / n - 0.5, (j + 0.5) / n - 0.5)).hit
         box /= n * n
     finally:

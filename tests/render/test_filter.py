@@ -13,7 +13,7 @@ from app import reference
 from app.bench.antialias import CURLED, FAR_FUR_DISTANCE, changed_share
 from app.bench.extremes import FloatRenderer
 from app.gl.shaders import ProgramCache
-from app.params import ParamError
+from app.params import ParamError, Params
 from app.presets import find_preset
 from app.render.camera import Camera
 from app.render.renderer import filtered
@@ -22,6 +22,7 @@ from tests.support.glsl_harness import run_fragment
 
 SIZE = (160, 90)
 ON = {"quality.filter": "coverage"}
+OFF = {"quality.filter": "off"}     # the default is coverage (#16): the unfiltered frame is asked for by name
 
 
 def _subject(renderer, name="default", **values):
@@ -39,7 +40,7 @@ def _subject(renderer, name="default", **values):
 def test_filter_changes_the_colour_and_not_the_ids(renderer, name, values):
     p, cam = _subject(renderer, name, **values)
     outputs = ("color", "ids", "geom")
-    off = renderer.render(p, cam, SIZE, outputs=outputs)
+    off = renderer.render(p.replace(**OFF), cam, SIZE, outputs=outputs)
     on = renderer.render(p.replace(**ON), cam, SIZE, outputs=outputs)
     assert on.unfinished == 0
     assert off.hit.sum() > 500, "the scene should show fibers"
@@ -76,7 +77,7 @@ def test_thin_fibers_hold_still(renderer, name, values):
     fails it."""
     p, cam = _subject(renderer, name, **values)
     share = {}
-    for label, q in (("off", p), ("on", p.replace(**ON))):
+    for label, q in (("off", p.replace(**OFF)), ("on", p.replace(**ON))):
         a = renderer.render(q, cam, SIZE)
         b = renderer.render(q, cam, SIZE, offset=(0.1, 0.0))
         covered = (a.coverage > 0) | (b.coverage > 0)
@@ -117,7 +118,7 @@ def test_filter_stays_finite_at_extremes(ctx, extreme):
     r = FloatRenderer(ctx, ProgramCache())
     try:
         p, cam = _subject(r, "default", **EXTREMES[extreme])
-        off = r.render_float(p, cam, SIZE)
+        off = r.render_float(p.replace(**OFF), cam, SIZE)
         on = r.render_float(p.replace(**ON), cam, SIZE)
         assert np.isfinite(on.color).all() and np.isfinite(on.geom).all()
         assert on.color.min() >= 0.0 and on.color.max() <= 1.0
@@ -134,7 +135,9 @@ def test_filter_applies_where_it_can_and_says_so():
     assert not filtered(p, "fast"), "fast takes the first container hit: the grown bounds would reorder it"
     assert not filtered(p, "brute"), "brute force is the reference for ids"
     assert filtered(p.replace(**{"shape.curl_amplitude": 0.2}), "exact"), "curved fibers are filtered too"
-    assert not filtered(find_preset("default").params, "exact")
+    assert filtered(find_preset("default").params, "exact"), "on by default (#16): its cost allows it"
+    assert filtered(Params(), "exact") and Params()["quality.filter"] == "coverage"
+    assert not filtered(p.replace(**OFF), "exact")
     with pytest.raises(ParamError):
         p.replace(**{"quality.filter": "box"})
 

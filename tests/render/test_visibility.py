@@ -72,10 +72,15 @@ def test_fast_walk_stops_at_the_first_container_with_a_hit(renderer):
 
 
 def test_auto_takes_the_proxies_for_few_layers_and_the_walk_for_many(renderer):
-    p, scene, cam = setup(renderer, {})
+    # auto's choice is the unfiltered frame's: the filtered one (the default since #16) always walks
+    p, scene, cam = setup(renderer, {"quality.filter": "off"})
     assert proxy_layers(scene, cam, SIZE) < WALK_LAYERS
     assert renderer.visibility(p, cam, SIZE) == "proxies"
-    p, scene, cam = setup(renderer, {"scene.generator": "furball", "scene.count": 3000, "scene.radius": 0.3})
+    assert renderer.visibility(p.replace(**{"quality.filter": "coverage"}), cam, SIZE) == "walk"
+    assert renderer.visibility(p.replace(**{"quality.filter": "coverage", "quality.mode": "fast"}), cam,
+                               SIZE) == "proxies", "fast mode is not filtered: auto chooses as before"
+    p, scene, cam = setup(renderer, {"scene.generator": "furball", "scene.count": 3000, "scene.radius": 0.3,
+                                     "quality.filter": "off"})
     assert proxy_layers(scene, cam, SIZE) > WALK_LAYERS
     assert renderer.visibility(p, cam, SIZE) == "walk"
     # a camera inside the hair: some proxy reaches behind it and would cover the whole viewport
