@@ -862,10 +862,12 @@ def model_defines(p: Params, mode: str, cost: bool) -> dict[str, int]:
 
 
 def filtered(p: Params, mode: str) -> bool:
-    """Whether a frame gets the filtered colour (quality.filter, glsl/fibers/coverage.glsl): exact mode.
-    Fast mode takes the first container with a hit, which the filter's grown bounds would reorder (its ids
-    would change); brute force is the reference for ids."""
-    return p["quality.filter"] == "coverage" and mode == "exact"
+    """Whether a frame gets the filtered colour (quality.filter, glsl/fibers/coverage.glsl): exact mode,
+    untapered fibers. Fast mode takes the first container with a hit, which the filter's grown bounds would
+    reorder (its ids would change); brute force is the reference for ids. The coverage has no tip taper
+    yet: filtered, a tapered look would show its blunt fibers' colour in every pixel, so it is drawn
+    unfiltered (the viewer says so beside the switch)."""
+    return p["quality.filter"] == "coverage" and mode == "exact" and p["strand.tip_width"] >= 1.0
 
 
 def shape_curl_define(p: Params) -> int:

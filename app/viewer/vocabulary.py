@@ -158,9 +158,10 @@ APPLIES: dict[str, tuple[Callable[[Params], bool], str]] = {
     "light.environment_rotation": (lambda p: p["light.environment"] != "off", "the HDRI is off"),
     "quality.msaa": (lambda p: p["quality.mode"] != "brute", "reference accuracy casts one ray per pixel"),
     "quality.supersample": (lambda p: p["quality.mode"] != "brute", "reference accuracy casts one ray per pixel"),
-    "quality.filter": (lambda p: p["quality.mode"] == "exact", "the filter colours exact mode's frames"),
-    "quality.filter_width": (lambda p: p["quality.mode"] == "exact" and p["quality.filter"] == "coverage",
-                             "the filter is off"),
+    "quality.filter": (lambda p: p["quality.mode"] == "exact" and p["strand.tip_width"] >= 1.0,
+                       "the filter colours exact mode's frames of untapered fibers (tip thickness 1)"),
+    "quality.filter_width": (lambda p: p["quality.mode"] == "exact" and p["quality.filter"] == "coverage"
+                             and p["strand.tip_width"] >= 1.0, "the filter is off or does not apply"),
 }
 
 

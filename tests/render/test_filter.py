@@ -138,6 +138,7 @@ def test_filter_applies_where_it_can_and_says_so():
     assert filtered(find_preset("default").params, "exact"), "on by default (#16): its cost allows it"
     assert filtered(Params(), "exact") and Params()["quality.filter"] == "coverage"
     assert not filtered(p.replace(**OFF), "exact")
+    assert not filtered(p.replace(**{"strand.tip_width": 0.3}), "exact"), "the coverage has no taper yet"
     with pytest.raises(ParamError):
         p.replace(**{"quality.filter": "box"})
 

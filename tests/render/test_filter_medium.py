@@ -239,8 +239,8 @@ def _first_hit_light(lay, guide, theta, l2, sigma, ys):
     dv = np.array([math.cos(theta), math.sin(theta)])
     nv = np.array([-dv[1], dv[0]])
     off = ys[:, None] - (cx * nv[0] + cy * nv[1])[None]
-    t = np.where(np.abs(off) < rf[None], (cx * dv[0] + cy * dv[1])[None] - np.sqrt(np.maximum(rf[None] ** 2 - off ** 2, 0)),
-                 np.inf)
+    along = (cx * dv[0] + cy * dv[1])[None]
+    t = np.where(np.abs(off) < rf[None], along - np.sqrt(np.maximum(rf[None] ** 2 - off ** 2, 0)), np.inf)
     t = t.min(1)
     hit = np.where(np.isfinite(t)[:, None], t[:, None] * dv + ys[:, None] * nv, 0.0)
     e = np.exp(-sigma * np.maximum(reference.cover_light_path(hit, l2), 0.0))
