@@ -646,7 +646,6 @@ def cover_light_path(q, l2):
         return np.where(ll > 0.0, (-qb + root) / np.where(ll > 0.0, ll, 1.0), np.inf)
 
 
-
 def medium_face(rho: float, n: float, rf: float, dr: float) -> tuple[float, float, float]:
     """Where a footprint's rays first meet a ring's fibers, for the medium's light and occlusion
     (coverage.glsl: medium_face). Where fibers do not overlap (k = n rf / (pi rho) fiber widths over each

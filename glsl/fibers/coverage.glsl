@@ -511,7 +511,6 @@ CoverSums cover_medium(Segment seg, UnitRay ur, RayPath rp, float wu, vec2 l2, v
         float y0 = min(d, rho);
         float xArc = sqrt(max(rho * rho - y0 * y0, 0.0));
         vec2 radial = -rf * dn;                         // the fibers' sides facing the ray, on average
-
         // The light falls off exponentially across an arc, so its value where the centre line meets the
         // ring is not the arc's mean: the path to the wall is taken piecewise linear in the angle around the
         // ring's face (medium_face: where rays first meet its fibers, mirrored about rho for the back arc)

@@ -158,8 +158,8 @@ void main() {
     bool near = to_unit_space_dilated(seg, rd, uNear, uf, wu) && visit;
     // once the footprint is opaque the walk goes on only for a nearer fiber; a container it then enters
     // behind the composite's front could only go under it, at most 1 - WALK_OPAQUE of its weight: not scanned
-    float front0 = accum.a > 0.0 ? imageLoad(uAccumFront, px).x : INF;
-    near = near && !(opaque && uf.tb >= front0);
+    float front = accum.a > 0.0 ? imageLoad(uAccumFront, px).x : INF;
+    near = near && !(opaque && uf.tb >= front);
     uf.s0 = near ? uf.s0 : INF;
     uf.s1 = near ? uf.s1 : -INF;
     // the key light and the self-shadow estimate per fiber (traced shadows: the blend's own shadow ray)
@@ -179,7 +179,6 @@ void main() {
     // composited in linear light (the reference averages there). The walk is depth first, nearer child
     // first: containers come roughly, not exactly, front to back, so each goes over what is there when it
     // starts nearer than all of it, else under (exact for two layers in either order).
-    float front = front0;
     float tc = unit_to_world_t(seg, uf, cb.s);
     vec4 mine = vec4(cb.alpha * sh.linear, cb.alpha);
     bool over = tc < front;
