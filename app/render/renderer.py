@@ -861,13 +861,18 @@ def model_defines(p: Params, mode: str, cost: bool) -> dict[str, int]:
             "TAPER": int(fibers.tapered(p))}       # glsl/fibers/taper.glsl: tip width 1 builds no cone
 
 
+def filter_applies(p: Params, mode: str) -> bool:
+    """Whether quality.filter can colour a frame of ``p`` in ``mode``: exact mode, untapered fibers. Fast
+    mode takes the first container with a hit, which the filter's grown bounds would reorder (its ids would
+    change); brute force is the reference for ids. The coverage has no tip taper yet: filtered, a tapered
+    look would show its blunt fibers' colour in every pixel, so it is drawn unfiltered (the viewer greys the
+    switch and says why: vocabulary.py)."""
+    return mode == "exact" and p["strand.tip_width"] >= 1.0
+
+
 def filtered(p: Params, mode: str) -> bool:
-    """Whether a frame gets the filtered colour (quality.filter, glsl/fibers/coverage.glsl): exact mode,
-    untapered fibers. Fast mode takes the first container with a hit, which the filter's grown bounds would
-    reorder (its ids would change); brute force is the reference for ids. The coverage has no tip taper
-    yet: filtered, a tapered look would show its blunt fibers' colour in every pixel, so it is drawn
-    unfiltered (the viewer says so beside the switch)."""
-    return p["quality.filter"] == "coverage" and mode == "exact" and p["strand.tip_width"] >= 1.0
+    """Whether a frame gets the filtered colour (quality.filter, glsl/fibers/coverage.glsl)."""
+    return p["quality.filter"] == "coverage" and filter_applies(p, mode)
 
 
 def shape_curl_define(p: Params) -> int:

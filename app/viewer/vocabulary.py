@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 from ..params import SPEC, Params
+from ..render.renderer import filter_applies, filtered
 
 # (title, keys) in panel order. Every SPEC key sits in exactly one section (a test checks); a key added
 # to SPEC later and not placed here lands in the section of its group's first key, or "Other".
@@ -158,10 +159,9 @@ APPLIES: dict[str, tuple[Callable[[Params], bool], str]] = {
     "light.environment_rotation": (lambda p: p["light.environment"] != "off", "the HDRI is off"),
     "quality.msaa": (lambda p: p["quality.mode"] != "brute", "reference accuracy casts one ray per pixel"),
     "quality.supersample": (lambda p: p["quality.mode"] != "brute", "reference accuracy casts one ray per pixel"),
-    "quality.filter": (lambda p: p["quality.mode"] == "exact" and p["strand.tip_width"] >= 1.0,
+    "quality.filter": (lambda p: filter_applies(p, p["quality.mode"]),
                        "the filter colours exact mode's frames of untapered fibers (tip thickness 1)"),
-    "quality.filter_width": (lambda p: p["quality.mode"] == "exact" and p["quality.filter"] == "coverage"
-                             and p["strand.tip_width"] >= 1.0, "the filter is off or does not apply"),
+    "quality.filter_width": (lambda p: filtered(p, p["quality.mode"]), "the filter is off or does not apply"),
 }
 
 
