@@ -79,6 +79,7 @@ WALK_CAP = 4096                   # box tests per walk (glsl/geometry/bvh.glsl)
 WORD_ROW = 4096
 NODE_UNIT, ORDER_UNIT, SEGMENT_UNIT = 7, 8, 9
 LIST_UNITS = (10, 11)             # walk.frag: the list of pixels a draw walks and the one it appends to
+NEAREST_UNIT = 12                 # container.frag: the nearest hit so far per pixel, for the proxies
 VISIBILITY = ("auto", "proxies", "walk")
 # auto: the walk once the proxies would stack this many layers per covered pixel (proxy_layers). Measured
 # on llvmpipe, 640x360 exact, CPU time per frame (one process, 7 alternated frames, median), walk over
@@ -140,17 +141,21 @@ class Renderer:
         """Upload the containers and their hierarchy once (``bvh``: build_bvh(scene) made elsewhere, e.g. in
         the viewer's loading thread; None: built here). Nothing here depends on how many fibers are drawn:
         five vec4 per segment for the proxies and five for the walk, four per hierarchy node, one index per
-        segment."""
+        segment for the walk and one for the proxies' draw order."""
         for buf in (*self._buffers.values(), *self._words.values()):
             buf.release()
         for vao in self._vaos.values():
             vao.release()
         self._vaos.clear()
         self._layers = None
+        self._proxy_order_from = None
         self.scene = scene
         self.bvh = bvh if bvh is not None else build_bvh(scene)
         data = scene.segments if scene.n_segments else np.zeros((1, 20), np.float32)
-        self._buffers = {"segments": self.ctx.buffer(np.ascontiguousarray(data, np.float32).tobytes())}
+        # the proxies' vertex buffer holds the segments in their draw order (nearest first: _sort_proxies),
+        # "segment index" each one's index in the scene
+        self._buffers = {"segments": self.ctx.buffer(np.ascontiguousarray(data, np.float32).tobytes()),
+                         "segment index": self.ctx.buffer(np.arange(len(data), dtype=np.int32).tobytes())}
         if scene.guide_colors is not None:      # the groom file's colours, two vec4 per guide
             self._buffers["guide_colors"] = self.ctx.buffer(scene.guide_color_rows().tobytes())
         # the walk's copies (the proxies draw the segments from the vertex buffer above)
@@ -200,6 +205,8 @@ class Renderer:
                 self._targets[key] = self.ctx.framebuffer([], depth)
             elif kind == "lists":       # the pixels still walking, two lists (walk.frag: uListIn, uListOut)
                 self._targets[key] = self.ctx.framebuffer([tex(size, c, dtype=d) for c, d in LIST_IMAGES])
+            elif kind == "nearest hit":     # container.frag: uNearestHit
+                self._targets[key] = self.ctx.framebuffer([tex(size, 1, dtype="u4")])
             elif kind == "proxy cost":
                 self._targets[key] = self.ctx.framebuffer([tex(size, 4, dtype="f4")])
             else:
@@ -328,7 +335,7 @@ class Renderer:
             self._vaos[key] = self.ctx.vertex_array(prog, [
                 (self._quad, "2f", "in_quad"),
                 (self._buffers["segments"], "4f 4f 4f 4f 4f/i", "in_a", "in_b", "in_c", "in_d", "in_e"),
-            ])
+            ] + ([(self._buffers["segment index"], "i/i", "in_segment")] if "in_segment" in prog else []))
         return self._vaos[key]
 
     def visibility(self, p: Params, cam: Camera, size: tuple[int, int], mode: str | None = None) -> str:
@@ -484,9 +491,30 @@ class Renderer:
         return draws, left
 
     # --- the proxies strategy ------------------------------------------------------------------------
-    def _proxy_draws(self, prog: moderngl.Program, p: Params, mode: str, rays: int) -> int:
-        """Draw every container's proxy once per range of ``draw_ranges``; the depth test keeps the
-        nearest hit across containers and ranges. Returns the draw count."""
+    def _sort_proxies(self, cam: Camera) -> None:
+        """Put the proxies in the order they are drawn: nearest segment midpoint first, so the fragments at
+        a pixel mostly come front to back and each traversal after the first is cut at the hit before it
+        (container.frag: nearest_so_far). Any order gives the same picture; this one does the least work.
+        Sorted again only when the camera moves."""
+        if self._proxy_order_from == tuple(cam.position) or self.scene.n_segments < 2:
+            return
+        self._proxy_order_from = tuple(cam.position)
+        seg = self.scene.segments
+        mid = 0.5 * (seg[:, 0:3].astype(np.float64) + seg[:, 4:7]) + (self.scene.origin - cam.position)
+        order = np.argsort(np.einsum("ij,ij->i", mid, mid), kind="stable")
+        self._buffers["segments"].write(np.ascontiguousarray(seg[order], np.float32).tobytes())
+        self._buffers["segment index"].write(order.astype(np.int32).tobytes())
+
+    def _proxy_draws(self, prog: moderngl.Program, p: Params, cam: Camera, fbo: moderngl.Framebuffer, region,
+                     mode: str, rays: int) -> int:
+        """Draw every container's proxy once per range of ``draw_ranges``, nearest first; the depth test keeps
+        the nearest hit across containers and ranges, and each pixel's nearest hit so far (cleared here)
+        lets a later fragment stop there. Returns the draw count."""
+        self._sort_proxies(cam)
+        nearest = self._target(tuple(fbo.size), "nearest hit")
+        nearest.clear(0.0, 0.0, 0.0, 0.0)
+        nearest.color_attachments[0].bind_to_image(NEAREST_UNIT, read=True, write=True)
+        self._use(fbo, region)              # back to the pass's framebuffer (creating one binds it)
         vao = self._proxy_vao(prog)
         self._bind_guide_colors()
         ranges = draw_ranges(p, self.scene, mode, rays)
@@ -514,7 +542,7 @@ class Renderer:
         clear_targets(fbo)
         prog = self.proxy_program(p, mode, cost=False)
         self._set_uniforms(prog, p, cam, size, offset)
-        draws = self._proxy_draws(prog, p, mode, traversals_per_fragment(p, mode))
+        draws = self._proxy_draws(prog, p, cam, fbo, region, mode, traversals_per_fragment(p, mode))
         fbo.depth_mask = False
         self.ctx.disable(moderngl.DEPTH_TEST)
         fbo.scissor = None
@@ -536,7 +564,7 @@ class Renderer:
             ctx.blend_equation = moderngl.FUNC_ADD if kind == "cost" else moderngl.MAX
             prog = self.proxy_program(p, mode, cost=True)
             self._set_uniforms(prog, p, cam, size, offset)
-            frame.draws += self._proxy_draws(prog, p, mode, rays)
+            frame.draws += self._proxy_draws(prog, p, cam, fbo, region, mode, rays)
             data = _read(fbo, 0, 4, "f4", size)
             if kind == "cost":
                 # every proxy fragment the ray entered traversed its container; no hierarchy was walked
@@ -944,13 +972,13 @@ def word_image(ctx: moderngl.Context, words: np.ndarray) -> moderngl.Texture:
 
 
 def scene_gpu_bytes(scene: Scene) -> int:
-    """What ``Renderer.set_scene`` allocates for ``scene``: the segments (a vertex buffer for the proxies and
-    an image for the walk), the per-guide colours (a groom file's, where it has them), the hierarchy's nodes
-    and order (images), the shared proxy rectangle."""
+    """What ``Renderer.set_scene`` allocates for ``scene``: the segments (a vertex buffer for the proxies, in
+    their draw order with each one's scene index, and an image for the walk), the per-guide colours (a groom
+    file's, where it has them), the hierarchy's nodes and order (images), the shared proxy rectangle."""
     n = max(scene.n_segments, 1)
     records, order = bvh_words(scene.n_segments)
     texels = [np.prod(word_image_size(words)) for words in (5 * n, records, order)]
-    return (max(scene.segments.nbytes, 80) + scene.guide_color_bytes + _QUAD.nbytes
+    return (max(scene.segments.nbytes, 80) + 4 * n + scene.guide_color_bytes + _QUAD.nbytes
             + int(16 * (texels[0] + texels[1]) + 4 * texels[2]))
 
 
@@ -1024,9 +1052,10 @@ _DTYPE_BYTES = {"f1": 1, "u4": 4, "f4": 4}
 def frame_gpu_bytes(size: tuple[int, int]) -> int:
     """What the per-pixel targets of one frame allocate: the image (colour RGBA8 4 B, ids 16 B, geometry
     16 B), the shared depth buffer (4 B), the walk's state images (STATE_IMAGES: 100 B) and its lists
-    (LIST_IMAGES: 8 B); a proxies-path cost output adds 16 B per pixel while it is rendered."""
+    (LIST_IMAGES: 8 B), the proxies' nearest hit so far (4 B); a proxies-path cost output adds 16 B per pixel
+    while it is rendered."""
     state = sum(c * _DTYPE_BYTES[d] for c, d in (*STATE_IMAGES, *LIST_IMAGES))
-    return int(size[0]) * int(size[1]) * (4 + 16 + 16 + 4 + state)
+    return int(size[0]) * int(size[1]) * (4 + 16 + 16 + 4 + state + 4)
 
 
 def list_rectangle(count: int, size: tuple[int, int]) -> tuple[int, int, int]:

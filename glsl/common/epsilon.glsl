@@ -35,6 +35,9 @@ const float DCDV_STEP = 1e-3;
 // Relative margin on the walk's cut (walk.frag: walk_cut): a container whose bound the ray enters up to
 // this much after the nearest hit is still visited, for the rounding between box and unit-space entry.
 const float EPS_WALK_CUT = 1e-5;
+// Relative margin past a hit known elsewhere (traverse.glsl: limit_traversal): a fiber hit up to this much
+// behind it is still found, so a tie (a fiber crossing a joint, in both segments) is broken as before.
+const float EPS_KNOWN = 1e-4;
 // Where a traced shadow ray starts, in container radii along the light from the hit, so it leaves the
 // fiber it starts on (fiber_shading.glsl).
 const float EPS_SHADOW_START = 1e-3;

@@ -126,6 +126,7 @@ bool to_unit_space_dilated(Segment seg, vec3 rd, float tNear, out UnitRay ur, ou
     bool inside = bounded && ur.s0 <= ur.s1;
     ur.s0 = inside ? ur.s0 : INF;
     ur.s1 = inside ? ur.s1 : -INF;
+    ur.sKnown = INF;
     return inside;
 }
 

@@ -223,7 +223,8 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
         // arcs come in order of their start. One that starts at the nearest hit can only tie it (a ray that
         // starts inside fibers of two rings enters both at its start), and the lower ring wins a tie: it is
         // visited if its ring is not above the best's (the arcs after it may still be lower rings)
-        if (inside && gMode != 2 && a > sc.best.s) break;
+        // (sKnown: a nearer hit is known elsewhere, traverse.glsl: limit_traversal)
+        if (inside && (a > ur.sKnown || (gMode != 2 && a > sc.best.s))) break;
         inside = inside && (gMode == 2 || a < sc.best.s || i <= sc.best.ring);
         Bands arcBands = bands;
 #if SHAPE_ELLIPSOID
@@ -343,8 +344,9 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
                 shaped_candidate(seg, fri, pc, t, candidate(run0, run1, dir, t), sc);
             }
 #endif
-            // exact: no later piece can start before the nearest hit; fast: stop at the first
-            bool stop = gMode == 0 ? sc.found : (gMode == 1 && pc.P1.s >= sc.best.s);
+            // exact: no later piece can start before the nearest hit; fast: stop at the first; none
+            // past a hit known elsewhere
+            bool stop = (gMode == 0 ? sc.found : (gMode == 1 && pc.P1.s >= sc.best.s)) || pc.P1.s >= ur.sKnown;
             pieces = stop ? k + 1 : pieces;
             pc.P0 = pc.P1;
             thA = thB;

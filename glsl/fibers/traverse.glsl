@@ -1,6 +1,7 @@
 // traverse.glsl: find the fiber a ray hits inside one container segment (thesis chapter III, Appendix A).
 //   FiberHit traverse(Segment seg, UnitRay ur)     in the cost pass, then reports a loop budget run out
 //   FiberHit traverse_fibers(Segment seg, UnitRay ur)   the mode switch
+//   void limit_traversal(Segment seg, inout UnitRay ur, float tKnown)   a nearer hit need not be sought
 // TRAVERSAL selects the mode (mode.glsl):
 //   0 fast   the thesis's order, first hit wins (straight.glsl; shaped.glsl for curved fibers).
 //   1 exact  the same order, tested on until no later arc can be nearer: returns the nearest fiber.
@@ -50,11 +51,23 @@ void test_fiber(Segment seg, FiberRay fr, int ring, int j, inout FiberHit best) 
     }
 }
 
+// A hit at world t = tKnown is known already (another container's, an earlier draw's): the ray's fibers
+// past it cannot be the pixel's, so the traversal need not look there (EPS_KNOWN past it, so a tie is
+// still found and broken as it was). A container whose proxy or leaf the ray meets behind a nearer one's
+// fiber then costs its entry only, and one that it crosses partly (a joint) its stretch before the hit.
+void limit_traversal(Segment seg, inout UnitRay ur, float tKnown) {
+    float s = tKnown < INF ? world_to_unit_s(seg, ur, tKnown) : INF;
+    ur.sKnown = s < INF ? s + EPS_KNOWN * (abs(s) + 1e-2) : INF;
+}
+
 FiberHit traverse_fibers(Segment seg, UnitRay ur) {
 #if SHAPED
-    if (!(uFiberRadius > 0.0) || !(ur.s0 <= ur.s1)) return no_hit();    // see traverse_straight
+    // curved fibers keep the whole stretch: a chord piece's ends follow its arc's, and cutting the arc
+    // would move the fibers it approximates (shaped.glsl stops its arcs and pieces at sKnown instead)
+    if (!(uFiberRadius > 0.0) || !(ur.s0 <= min(ur.s1, ur.sKnown))) return no_hit();   // see traverse_straight
     return traverse_shaped(seg, ur);
 #else
+    ur.s1 = min(ur.s1, ur.sKnown);      // a straight fiber's hit is exact on any stretch of the ray
     if (gMode != 2) return traverse_straight(seg, ur);
     if (!(uFiberRadius > 0.0) || !(ur.s0 <= ur.s1)) return no_hit();
     FiberHit best = no_hit();

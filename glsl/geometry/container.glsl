@@ -39,6 +39,7 @@ struct UnitRay {
     vec3 D;             // unit-space unit direction
     float Dlen;         // length of the direction before normalisation
     float s0, s1;       // inside the container
+    float sKnown;       // a hit this far is known elsewhere: nothing past it matters (INF: none)
 };
 
 // How far a joint plane leans past the end point per unit of radius (tan of its tilt).
@@ -135,6 +136,7 @@ bool to_unit_space(Segment seg, vec3 ro, vec3 rd, float tNear, out UnitRay ur) {
     bool inside = clip_to_container(seg, ur) && bounded;
     ur.s0 = inside ? ur.s0 : INF;
     ur.s1 = inside ? ur.s1 : -INF;
+    ur.sKnown = INF;
     return inside;
 }
 
@@ -153,6 +155,14 @@ bool clip_to_container(Segment seg, inout UnitRay ur) {
 float unit_to_world_t(Segment seg, UnitRay ur, float s) {
     float sigma = s / ur.Dlen;
     return ur.tb + sigma * ur.wO * ur.wO / (1.0 - sigma * ur.wO * seg.kappa * ur.d.z);
+}
+
+// unit_to_world_t inverted: the unit-space s of world t along the ray, negative before the unit-space
+// origin; INF where the taper's w(z) has fallen to 0 on the way (t lies past the whole container).
+float world_to_unit_s(Segment seg, UnitRay ur, float t) {
+    float u = t - ur.tb;
+    float w = ur.wO + u * seg.kappa * ur.d.z;
+    return w > 0.0 ? u / (ur.wO * w) * ur.Dlen : INF;
 }
 
 // Guide parameter v at unit-space height zUnit (the projective map inverted along the axis).

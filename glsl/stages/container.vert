@@ -16,6 +16,7 @@ in vec4 in_b;               // p1.xyz, r1
 in vec4 in_c;               // n0.xyz, v0
 in vec4 in_d;               // n1.xyz, v1
 in vec4 in_e;               // frame x, guide
+in int in_segment;          // the segment's index in the scene (the renderer draws them nearest first)
 
 uniform vec3 uSceneFromCamera;  // scene origin minus camera position
 uniform mat4 uClipFromCamera;   // projection * view rotation (camera at the origin)
@@ -30,7 +31,7 @@ void main() {
     Segment seg = make_segment(vec4(in_a.xyz + uSceneFromCamera, in_a.w), vec4(in_b.xyz + uSceneFromCamera, in_b.w),
                                in_c, in_d, in_e);
     pack_segment(seg, vSeg);
-    vSegment = gl_InstanceID;
+    vSegment = in_segment;
     float r = seg.rBound * (1.0 + 4.0 * EPS_BOUND);
     vec2 halfViewport = 0.5 * uViewport;
     vec2 corners[16];           // the octagonal prism's corners, in pixels from the viewport centre

@@ -147,6 +147,7 @@ void main() {
     ur.s0 = inside ? ur.s0 : INF;
     ur.s1 = inside ? ur.s1 : -INF;
     int entered = inside ? 1 : 0;
+    limit_traversal(seg, ur, bestT);        // the walk's nearest so far: only a nearer fiber matters here
     FiberHit best = traverse(seg, ur);
     float t = best.s < INF ? unit_to_world_t(seg, ur, best.s) : INF;
     bool improved = best.s < INF && key_before(t, id, bestT, bestSeg);

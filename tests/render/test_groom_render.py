@@ -303,13 +303,13 @@ def test_cli_renders_and_describes_a_groom_file(tmp_path: Path) -> None:
                    "fibers rendered  43,100 = 100 guides x 431 per container: 431.0 fibers per file strand",
                    # segments 24,000 (proxies' vertex buffer) + 24,000 (the walk's image) + hierarchy records
                    # 512 x 64 + leaf order 1,200 + proxy rectangle 48: the same with or without groom_auto
-                   "groom auto       rings 10, phi_step 2.9005", "GPU virtual      82,016 B",
+                   "groom auto       rings 10, phi_step 2.9005", "GPU virtual      83,216 B",
                    "GPU explicit     1,575,600 B"):
         assert needle in text, f"{needle!r} not in:\n{text}"
     assert "groom_children 0" in text and "\nchildren " not in text, "Bangs_100 does not fold: no children"
     plain = _vfiber("info", str(DATA / "Bangs_100.hair"), "--set", "fibers.groom_auto=false").stdout
     for needle in ("fibers rendered  360,000 = 100 guides x 3,600 per container: 3,600.0 fibers per file strand",
-                   "GPU virtual      82,016 B", "GPU explicit     12,984,000 B"):
+                   "GPU virtual      83,216 B", "GPU explicit     12,984,000 B"):
         assert needle in plain, f"{needle!r} not in:\n{plain}"
     assert "groom auto" not in plain
 

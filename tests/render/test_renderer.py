@@ -117,7 +117,8 @@ def test_goldens(gl, renderer, regen_goldens, name):
 
 def test_frame_gpu_bytes_counts_what_a_frame_allocates(renderer):
     """vfiber info and the viewer report frame_gpu_bytes beside the scene bytes (issue 12): it must be what
-    the renderer's per-pixel targets really take, walk state and the filtered mode's images included."""
+    the renderer's per-pixel targets really take, walk state, the filtered mode's images and the proxies'
+    nearest hit included."""
     from app.params import Params
     from app.render.camera import Camera
     from app.render.renderer import frame_gpu_bytes
@@ -129,6 +130,7 @@ def test_frame_gpu_bytes_counts_what_a_frame_allocates(renderer):
     size = (64, 36)
     cam = Camera.from_params(p, scene, aspect=size[0] / size[1])
     renderer.render(p, cam, size, outputs=("color", "ids", "cost"))
+    renderer.render(p.replace(**{"quality.visibility": "proxies", "quality.filter": "off"}), cam, size)
     attachments = {}
     for (s, kind), target in renderer._targets.items():
         if s != size or kind == "proxy cost" or not hasattr(target, "color_attachments"):
