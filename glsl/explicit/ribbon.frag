@@ -61,6 +61,7 @@ in vec4 vInside;                // offset of the fiber's axis from the container
 in float vRadius;               // container radius w
 flat in vec4 vAxis;             // container segment axis (unit), length h
 flat in vec2 vEnds;             // 1: the segment is the guide's root / tip
+flat in vec2 vRadii;            // the container radius at the root and tip end (ribbon.vert)
 flat in uvec4 vId;
 flat in vec3 vLook;
 in float vV;                    // guide parameter at this point of the ribbon
@@ -94,28 +95,19 @@ layout(location = 1) out vec4 outDepth;     // 3: optical depth
 layout(early_fragment_tests) in;
 #endif
 
-// Density self-shadow as the virtual renderer estimates it (stages/container.frag: light_transmittance):
-// the fibers as a uniform medium along the light's path from the shaded point to the container's surface,
-// in container radii. The path ends at the side wall (radius w about the segment's axis) or past the
-// guide's root or tip; a joint between segments is no boundary for light (as there).
+// Density self-shadow as the virtual renderer estimates it (shading/fiber_shading.glsl: light_transmittance):
+// the fibers as a uniform medium along the light's path from the shaded point to the wall of the blended
+// guide's cylinder (shading/tangent.glsl: joint_light_path, which runs on across joints), or past the
+// guide's root or tip, in container radii. P: the point's offset from its fiber's axis point.
 float light_through(vec3 P, vec3 L) {
 #if SHADOW_MODE == 0
     return 1.0;
 #else
     vec3 axis = vAxis.xyz;
-    float z = vInside.w + dot(P, axis);
-    vec3 offset = vInside.xyz + P - dot(P, axis) * axis;
-    float along = dot(L, axis);
-    vec3 Lp = L - along * axis;
-    float w = vRadius;
-    float a = dot(Lp, Lp);
-    float b = dot(offset, Lp);
-    float c = dot(offset, offset) - w * w;
-    float side = a > 0.0 ? (-b + sqrt(max(0.0, b * b - a * c))) / a : 1e30;
-    float end = 1e30;
-    if (along > 0.0 && vEnds.y > 0.0) end = (vAxis.w - z) / along;
-    if (along < 0.0 && vEnds.x > 0.0) end = -z / along;
-    return exp(-uShadowDensity * uFiberDensity * max(0.0, min(side, end)) / max(w, EPS_DIVISOR));
+    vec3 fromRoot = vInside.w * axis + vInside.xyz + P;       // from the segment's root axis point
+    float path = joint_light_path(vJointN0, vJointN1, vAxis.w * axis, vRadii, greaterThan(vEnds, vec2(0.5)),
+                                  fromRoot, L);
+    return exp(-uShadowDensity * uFiberDensity * path);
 #endif
 }
 

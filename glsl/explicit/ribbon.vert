@@ -52,6 +52,7 @@ out vec4 vInside;               // the axis point's offset from the container ax
 out float vRadius;              // container radius w there
 flat out vec4 vAxis;            // segment axis (unit) and length h: for the self-shadow path
 flat out vec2 vEnds;            // 1 where the segment is the guide's root / tip: light leaves there
+flat out vec2 vRadii;           // the container's radius at the segment's root and tip end
 flat out uvec4 vId;             // guide + 1, ring, fiber, segment row
 flat out vec3 vLook;            // tint, roughness (0 .. 1), |c|
 out float vV;                   // guide parameter (0 root .. 1 tip): the colour along the strand
@@ -123,6 +124,7 @@ void main() {
 
     vAxis = vec4(axis / h, h);
     vEnds = vec2(aRowC.w <= 0.0 ? 1.0 : 0.0, aRowD.w >= 1.0 ? 1.0 : 0.0);
+    vRadii = vec2(aRowA.w, aRowB.w);
     // shading/fiber_shading.glsl: the guide's direction blended between the joint planes by where the
     // point lies between them (shading/tangent.glsl), plus the taper's tilt of an off-axis fiber. Both
     // distances are linear along the fiber, so the rasterizer interpolates them exactly.

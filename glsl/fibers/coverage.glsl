@@ -30,6 +30,7 @@
 #include "fibers/ray_path.glsl"
 #include "fibers/counters.glsl"
 #include "fibers/shape.glsl"
+#include "shading/tangent.glsl"
 
 #ifndef FIBERS_COVERAGE_GLSL
 #define FIBERS_COVERAGE_GLSL
@@ -299,12 +300,13 @@ float exp_mean(float k, float p0, float p1, float e0, float e1) {
     return spread > 1e-3 && p0 < INF && p1 < INF ? abs(e0 - e1) / spread : 0.5 * (e0 + e1);
 }
 
-// The key light's transmittance at q (density estimate: the path to the wall in the container's cross-
-// section, as fiber_shading.glsl: light_transmittance takes it; joints block none), and the occlusion of
-// a fiber at depth |c|: each fiber's own, since both fall off exponentially with depth and the mean of a
-// blend's fibers is brighter than a fiber at their mean depth.
-vec2 cover_light(vec2 q, vec2 c, vec2 l2, float ll, vec2 density) {
-    float path = cover_light_path(q, l2, ll);
+// The key light's transmittance at q, a fiber's point in the container's cross-section (density estimate:
+// the path to the wall of the blended guide's cylinder in the frame lf, as fiber_shading.glsl:
+// light_transmittance takes it, so the shadow runs on across joints; the root and tip are left out), and
+// the occlusion of a fiber at depth |c|: each fiber's own, since both fall off exponentially with depth and
+// the mean of a blend's fibers is brighter than a fiber at their mean depth.
+vec2 cover_light(LightFrame lf, vec2 q, vec2 c, vec2 density) {
+    float path = joint_light_path_unit(lf, q);
     return vec2(density.x > 0.0 ? exp(-density.x * max(path, 0.0)) : 1.0,      // no 0 * INF
                 mix(1.0, exp(-3.0 * (1.0 - length(c))), density.y));
 }
@@ -350,7 +352,7 @@ int cover_kept_upto(int x, int n, int m, int keptRing) {
 }
 
 // The scan: the fibers themselves, ring by ring in ray order (see cover_container).
-CoverSums cover_scan(Segment seg, UnitRay ur, RayPath rp, float wu, vec2 l2, vec2 density, bool on,
+CoverSums cover_scan(Segment seg, UnitRay ur, RayPath rp, float wu, vec3 Lu, vec2 density, bool on,
                      inout int tests) {
     CoverSums u = cover_sums_empty();
     vec2 d2 = ur.D.xy;
@@ -361,7 +363,12 @@ CoverSums cover_scan(Segment seg, UnitRay ur, RayPath rp, float wu, vec2 l2, vec
     float sMid = path_s(rp, 0.0);                       // the closest approach: front visits before, back after
     float zScale = seg.h / (seg.v1 - seg.v0);
     float invW = 1.0 / max(wu, 1e-30);
-    float ll = dot(l2, l2);
+    // the key light's frame for the fibers' self-shadow (cover_light), taken once where the ray comes
+    // nearest the axis inside the container: it turns slowly along a segment, and a footprint's fibers lie
+    // close to the ray
+    vec3 near = ur.O + clamp(sMid, ur.s0, ur.s1) * ur.D;
+    LightFrame lf = joint_light_frame(seg.n0, seg.n1, vec3(0.0, 0.0, seg.h),
+                                      near * (seg.r0 / (1.0 - seg.kappa * near.z)), Lu);
     int K = uRings;
     float samples = clamp(COVER_CONTAINER_SAMPLES / float(K), COVER_SAMPLES_MIN, float(COVER_SAMPLES));
     // the deepest ring the grown footprint can reach (one ring of slack for the rings' radial jitter): a
@@ -458,7 +465,7 @@ CoverSums cover_scan(Segment seg, UnitRay ur, RayPath rp, float wu, vec2 l2, vec
             float xc = 0.5 * (lo + hi);
             vec2 radial = xc * n2 - sqrt(max(rf * rf - xc * xc, 0.0)) * dn;
             uint key = fiber_key(uSeed, seg.guide, uint(i), uint(j));
-            vec2 lo2 = cover_light(c + radial, c, l2, ll, density);
+            vec2 lo2 = cover_light(lf, c + radial, c, density);
             cover_under(u, a, c, radial, s, key_random(key, CH_TINT) - 0.5, key_random(key, CH_ROUGH) - 0.5,
                         lo2.x, lo2.y);
         }
@@ -598,7 +605,7 @@ CoverBlend cover_container(Segment seg, UnitRay ur, float wu, vec3 Lu, vec2 dens
     wu = sqrt(wu * wu + 3.0 * disp * disp);
 #endif
     int tests = 0;
-    CoverSums scan = cover_scan(seg, ur, rp, min(wu, COVER_WU_MAX), Lu.xy, density, any && medium < 1.0, tests);
+    CoverSums scan = cover_scan(seg, ur, rp, min(wu, COVER_WU_MAX), Lu, density, any && medium < 1.0, tests);
     CoverSums med = cover_medium(seg, ur, rp, wu, Lu.xy, density, any && medium > 0.0, tests);
     // the scan stops once less than COVER_OPAQUE of the footprint shows through: alpha reaches 1 there and
     // runs on continuously from it (1 - T rescaled), so where the stop falls makes no step in the picture;

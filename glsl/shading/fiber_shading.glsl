@@ -50,6 +50,13 @@ float light_transmittance(Segment seg, UnitRay ur, FiberHit hit, vec3 Pu, vec3 L
     float w = seg.r0 / (1.0 - seg.kappa * Pu.z);
     vec3 Pl = Pu * w;
     vec3 Ll = transpose(mat3(seg.ex, seg.ey, seg.ez)) * L;
+#if SHADOW_MODE == 1
+    // density estimate: fibers as a uniform medium along the path to the wall of the blended guide's
+    // cylinder, which runs on across joints (tangent.glsl: joint_light_path), or past the root or tip
+    float path = joint_light_path(seg.n0, seg.n1, vec3(0.0, 0.0, seg.h), vec2(seg.r0, seg.r0 + seg.kappa * seg.h),
+                                  bvec2(seg.v0 <= 0.0, seg.v1 >= 1.0), Pl, Ll);
+    return exp(-uShadowDensity * uFiberDensity * path);
+#else
     vec3 Ql = Pl + Ll * (EPS_SHADOW_START * w);
     vec3 Qu = Ql / (seg.r0 + seg.kappa * Ql.z);
     UnitRay sr = ur;
@@ -68,10 +75,6 @@ float light_transmittance(Segment seg, UnitRay ur, FiberHit hit, vec3 Pu, vec3 L
     s = seg.v1 >= 1.0 ? tip : s;
     sr.s0 = s.x;
     sr.s1 = s.y;
-#if SHADOW_MODE == 1
-    // density estimate: fibers as a uniform medium along the path to the container's surface
-    return sr.s0 <= sr.s1 ? exp(-uShadowDensity * uFiberDensity * sr.s1) : 1.0;
-#else
     if (!(sr.s0 <= sr.s1)) return 1.0;
     // traced: the same traversal, any fiber on the way blocks the light
     int mode = gMode;

@@ -119,6 +119,67 @@ def test_glsl_tangent_is_its_numpy_twin_and_continuous(ctx):
     assert np.allclose(out["a"][1], out["b"][1], atol=1e-5), "one shading normal on the joint plane"
 
 
+# --- the density self-shadow's path runs on across a joint too (tangent.glsl: joint_light_path) ------------
+LIGHT_HARNESS = """#version 450 core
+#include "shading/tangent.glsl"
+uniform vec3 uN0;
+uniform vec3 uN1;
+uniform float uH;
+uniform vec2 uRadii;
+uniform vec3 uPoint[16];
+uniform vec3 uLight[4];
+layout(location = 0) out vec4 outValue;
+void main() {
+    int i = int(gl_FragCoord.x);
+    vec3 L = uLight[int(gl_FragCoord.y)];
+    outValue = vec4(joint_light_path(uN0, uN1, vec3(0.0, 0.0, uH), uRadii, bvec2(false), uPoint[i], L), 0.0, 0.0, 0.0);
+}
+"""
+LIGHTS = _unit(np.array([[0.3, 0.9, 0.2], [-0.8, 0.1, 0.5], [0.2, -0.6, -0.7], [0.9, 0.3, -0.1]]))
+
+
+def _light_paths(ctx, seg, radii, local_points, local_lights):
+    def setup(prog):
+        prog["uN0"].value, prog["uN1"].value, prog["uH"].value = tuple(seg.n0), tuple(seg.n1), seg.h
+        prog["uRadii"].value = tuple(radii)
+        prog["uPoint"].write(np.asarray(local_points, np.float32).tobytes())
+        prog["uLight"].write(np.asarray(local_lights, np.float32).tobytes())
+
+    return run_fragment(ctx, LIGHT_HARNESS, (len(local_points), len(local_lights)), setup)[..., 0]
+
+
+def _own_cylinder_path(local_point, local_light, radius):
+    """The rule before: the path to the wall of the segment's own straight cylinder (|xy| = radius)."""
+    q, d = local_point[:2], local_light[:2]
+    a, b, c = d @ d, q @ d, q @ q - radius * radius
+    return (-b + math.sqrt(max(b * b - a * c, 0.0))) / a / radius
+
+
+def test_self_shadow_path_runs_on_across_a_joint(ctx):
+    """Points inside the container on the joint plane of a 40 degree bend: from either segment the key
+    light's path to the wall is one length (each segment's own cylinder gave another, the step that banded
+    sintel's self-shadow at every joint: docs/antialias.md); on a straight guide it is the cylinder's."""
+    a, b, rows = _bent_pair()
+    radius = rows[0, 3]
+    pts, _ = _joint_points(a, 0.6 * radius)
+    paths, old = {}, {}
+    for name, s in (("a", a), ("b", b)):
+        local = (pts - s.p0) @ _frame(s).T
+        lights = LIGHTS @ _frame(s).T
+        paths[name] = _light_paths(ctx, s, (radius, radius), local, lights)
+        old[name] = np.array([[_own_cylinder_path(p, L, radius) for p in local] for L in lights])
+    assert np.all(np.isfinite(paths["a"])) and paths["a"].min() >= 0.0
+    assert np.allclose(paths["a"], paths["b"], rtol=1e-4, atol=1e-5), np.abs(paths["a"] - paths["b"]).max()
+    assert np.abs(old["a"] - old["b"]).max() > 0.1, "the old rule should step here: the scene lost its bend"
+    # a straight guide: the blended cylinder is the segment's own
+    straight, _, srows = _bent_pair(bend_deg=0.0)
+    local = np.column_stack([0.6 * radius * np.cos(np.arange(16)), 0.6 * radius * np.sin(np.arange(16)),
+                             np.linspace(0.05, 0.95, 16)])
+    got = _light_paths(ctx, straight, (radius, radius), local, LIGHTS)
+    want = np.array([[_own_cylinder_path(p, L, radius) for p in local] for L in LIGHTS])
+    assert np.allclose(got, want, rtol=1e-4, atol=1e-5), np.abs(got - want).max()
+
+
 # --- in the picture: a bent two-segment container with the key light mirrored about the joint's bisector
 # (a Kajiya-Kay highlight right at the joint), 640x360, four sub-pixel offsets
 SIZE = (640, 360)
