@@ -73,7 +73,8 @@ MODES: dict[str, tuple[dict, int]] = {
     "filtered 0.6 px": ({"quality.filter": "coverage", "quality.filter_width": 0.6}, 0),   # sharper, less still
 }
 FILTERED = "filtered"
-SCENES = ("default", "fur-ball far", "sintel_hair.tfx", "fur-ball curled")
+SCENES = ("default", "fur-ball far", "sintel_hair.tfx", "fur-ball curled", "sintel tapered")
+TAPERED = {"strand.tip_width": 0.1}     # "sintel tapered": sintel_hair.tfx with pointed tips (strand.*)
 # The explicit baseline's coverage treatment (app/render/explicit.py, quality.filter = coverage): the same
 # scenes drawn as ribbons, against a reference of the explicit frames themselves; it has no supersample or
 # MSAA modes. "virtual none" and "virtual filtered" are the virtual renderer's frames of the same scene held
@@ -81,7 +82,7 @@ SCENES = ("default", "fur-ball far", "sintel_hair.tfx", "fur-ball curled")
 # explicit reference is 512 explicit frames); pass them with --scene. The curled scene has no explicit twin:
 # the explicit baseline draws curls straight.
 EXPLICIT = " (explicit)"
-EXPLICIT_SCENES = tuple(n + EXPLICIT for n in SCENES if n != "fur-ball curled")
+EXPLICIT_SCENES = tuple(n + EXPLICIT for n in SCENES if n not in ("fur-ball curled", "sintel tapered"))
 VIRTUAL = "virtual "
 EXPLICIT_MODES = ("none", "viewer accumulation 16", "filtered", "filtered 0.6 px", VIRTUAL + "none",
                   VIRTUAL + "filtered")
@@ -160,6 +161,8 @@ def load_subject(ctx, programs, name: str, size) -> Subject:
         p = find_preset("fur-ball").params.replace(**{"camera.distance": FAR_FUR_DISTANCE})
     elif name == "fur-ball curled":
         p = find_preset("fur-ball").params.replace(**{"camera.distance": FAR_FUR_DISTANCE, **CURLED})
+    elif name == "sintel tapered":
+        p = resolve_params(str(HAIR_DATA / "sintel_hair.tfx"), [])[0].replace(**TAPERED)
     elif (HAIR_DATA / name).suffix in GROOM_SUFFIXES:
         path = HAIR_DATA / name
         if not path.exists():

@@ -890,12 +890,12 @@ def model_defines(p: Params, mode: str, cost: bool) -> dict[str, int]:
 
 
 def filter_applies(p: Params, mode: str) -> bool:
-    """Whether quality.filter can colour a frame of ``p`` in ``mode``: exact mode, untapered fibers. Fast
-    mode takes the first container with a hit, which the filter's grown bounds would reorder (its ids would
-    change); brute force is the reference for ids. The coverage has no tip taper yet: filtered, a tapered
-    look would show its blunt fibers' colour in every pixel, so it is drawn unfiltered (the viewer greys the
-    switch and says why: vocabulary.py)."""
-    return mode == "exact" and p["strand.tip_width"] >= 1.0
+    """Whether quality.filter can colour a frame of ``p`` in ``mode``: exact mode. Fast mode takes the first
+    container with a hit, which the filter's grown bounds would reorder (its ids would change); brute force
+    is the reference for ids (the viewer greys the switch and says why: vocabulary.py). Tapered tips are
+    filtered too: the scan takes each fiber's width where the ray passes it, the medium their mean width
+    (glsl/fibers/coverage.glsl)."""
+    return mode == "exact"
 
 
 def filtered(p: Params, mode: str) -> bool:

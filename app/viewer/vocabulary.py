@@ -160,7 +160,7 @@ APPLIES: dict[str, tuple[Callable[[Params], bool], str]] = {
     "quality.msaa": (lambda p: p["quality.mode"] != "brute", "reference accuracy casts one ray per pixel"),
     "quality.supersample": (lambda p: p["quality.mode"] != "brute", "reference accuracy casts one ray per pixel"),
     "quality.filter": (lambda p: filter_applies(p, p["quality.mode"]),
-                       "the filter colours exact mode's frames of untapered fibers (tip thickness 1)"),
+                       "the filter colours exact mode's frames"),
     "quality.filter_width": (lambda p: filtered(p, p["quality.mode"]), "the filter is off or does not apply"),
 }
 

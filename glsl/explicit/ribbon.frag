@@ -104,9 +104,12 @@ float light_through(vec3 P, vec3 L) {
     return 1.0;
 #else
     vec3 axis = vAxis.xyz;
-    vec3 fromRoot = vInside.w * axis + vInside.xyz + P;       // from the segment's root axis point
-    float path = joint_light_path(vJointN0, vJointN1, vAxis.w * axis, vRadii, greaterThan(vEnds, vec2(0.5)),
-                                  fromRoot, L);
+    float z = vInside.w + dot(P, axis);
+    vec3 offset = vInside.xyz + P - dot(P, axis) * axis;     // from the axis (a reference strand's depth too)
+    vec3 fromRoot = z * axis + offset - dot(offset, axis) * axis;
+    vec3 tip = vAxis.w * axis;
+    float path = joint_light_path_in(joint_light_frame(vJointN0, vJointN1, tip, fromRoot, L), vJointN0, vJointN1, tip,
+                                     vRadii, greaterThan(vEnds, vec2(0.5)), fromRoot, offset, L);
     return exp(-uShadowDensity * uFiberDensity * path);
 #endif
 }

@@ -30,6 +30,7 @@
 #include "fibers/ray_path.glsl"
 #include "fibers/counters.glsl"
 #include "fibers/shape.glsl"
+#include "fibers/taper.glsl"
 #include "shading/tangent.glsl"
 
 #ifndef FIBERS_COVERAGE_GLSL
@@ -351,6 +352,17 @@ int cover_kept_upto(int x, int n, int m, int keptRing) {
     return q * keptRing + min(floor_div(x - q * n, m) + 1, keptRing);
 }
 
+// The tip taper's mean width at guide height v (taper.glsl: 1 up to uTaperStart of a fiber's own length,
+// then down to uTipWidth at its end), taken for the fiber ending halfway along what is left of the ends'
+// spread past v (length jitter: the ends are uniform over the last uLengthJitter of the guide): the
+// medium's fibers, where the scan takes each fiber's own.
+float taper_mean_width(float v) {
+    float vEnd = 0.5 * (max(v, 1.0 - uLengthJitter) + 1.0);
+    float vStart = uTaperStart * vEnd;
+    float along = clamp((v - vStart) / max(vEnd - vStart, EPS_DIVISOR), 0.0, 1.0);
+    return mix(1.0, uTipWidth, along);
+}
+
 // The scan: the fibers themselves, ring by ring in ray order (see cover_container).
 CoverSums cover_scan(Segment seg, UnitRay ur, RayPath rp, float wu, vec3 Lu, vec2 density, bool on,
                      inout int tests) {
@@ -369,6 +381,9 @@ CoverSums cover_scan(Segment seg, UnitRay ur, RayPath rp, float wu, vec3 Lu, vec
     vec3 near = ur.O + clamp(sMid, ur.s0, ur.s1) * ur.D;
     LightFrame lf = joint_light_frame(seg.n0, seg.n1, vec3(0.0, 0.0, seg.h),
                                       near * (seg.r0 / (1.0 - seg.kappa * near.z)), Lu);
+#if TAPER
+    TaperSeg ts = taper_seg(seg.v0, seg.v1, zScale, seg.r0, seg.kappa);
+#endif
     int K = uRings;
     float samples = clamp(COVER_CONTAINER_SAMPLES / float(K), COVER_SAMPLES_MIN, float(COVER_SAMPLES));
     // the deepest ring the grown footprint can reach (one ring of slack for the rings' radial jitter): a
@@ -455,15 +470,22 @@ CoverSums cover_scan(Segment seg, UnitRay ur, RayPath rp, float wu, vec3 Lu, vec
             float zc = vEnd >= seg.v1 ? INF : zl / (seg.r0 + seg.kappa * zl);
             // the tip: the footprint slides off the fiber's cut end as it does off its side
             float tip = clamp(0.5 + 0.5 * (zc - z) * invW, 0.0, 1.0);
+#if TAPER
+            // the fiber's width where the ray passes it: its tip taper's line at that height (taper.glsl)
+            vec2 line = taper_line(ts, vEnd);
+            float rw = rf * clamp(line.x + line.y * z, 0.0, 1.0);
+#else
+            float rw = rf;
+#endif
             bool mine = back ? s >= sMid : s < sMid;        // each fiber once: on the visit of its side
             bool valid = mine && s >= ur.s0 && s <= ur.s1 && vEnd > seg.v0;
-            float a1 = valid ? footprint_coverage(abs(x), rf, wu) * tip : 0.0;
+            float a1 = valid ? footprint_coverage(abs(x), rw, wu) * tip : 0.0;
             float a = 1.0 - pow(max(1.0 - a1, 0.0), mf);
             // the covered part of the fiber's width, and its surface point facing the ray
-            float lo = max(-rf, x - wu);
-            float hi = min(rf, x + wu);
+            float lo = max(-rw, x - wu);
+            float hi = min(rw, x + wu);
             float xc = 0.5 * (lo + hi);
-            vec2 radial = xc * n2 - sqrt(max(rf * rf - xc * xc, 0.0)) * dn;
+            vec2 radial = xc * n2 - sqrt(max(rw * rw - xc * xc, 0.0)) * dn;
             uint key = fiber_key(uSeed, seg.guide, uint(i), uint(j));
             vec2 lo2 = cover_light(lf, c + radial, c, density);
             cover_under(u, a, c, radial, s, key_random(key, CH_TINT) - 0.5, key_random(key, CH_ROUGH) - 0.5,
@@ -500,10 +522,16 @@ CoverSums cover_medium(Segment seg, UnitRay ur, RayPath rp, float wu, vec2 l2, v
     // curved fibers: the rings scaled by the ellipsoid where the ray passes closest to the axis; the twist
     // turns a ring into itself
     ArcShape sh = arc_shape(seg, ur, rp, 0.0, false, 0);
+#if TAPER
+    // the tip taper thins the fibers where the ray passes: the medium takes their mean width there
+    float thin = taper_mean_width(unit_to_v(seg, ur.O.z + clamp(path_s(rp, 0.0), ur.s0, ur.s1) * ur.D.z));
+#else
+    float thin = 1.0;
+#endif
     int K = uRings;
     for (int i = 0; i < (on ? K : 0); i++) {
         tests++;
-        float rf = uRingRadius[i];
+        float rf = uRingRadius[i] * thin;
         float rho = sh.e * uRingA[i].x;
         // the fence's edge is its fibers' outer side (their centres' jitter spreads it both ways); where
         // the fibers are, and what light reaches them, is their centres' radius

@@ -80,12 +80,15 @@ LightFrame joint_light_frame(vec3 n0, vec3 n1, vec3 tip, vec3 P, vec3 L) {
     return f;
 }
 
-// The path from P in a frame taken at P or near it (the filtered scan takes one per ring it visits).
-float joint_light_path_in(LightFrame f, vec3 n0, vec3 n1, vec3 tip, vec2 radii, bvec2 open, vec3 P, vec3 L) {
+// The path from P, whose offset from the segment's axis is `offset`, in a frame taken at P. The offset is
+// turned whole: the explicit reference's interpolated strands store a depth along the axis in it (app/bench/
+// strand_reference.py: "at depth 1, on the wall"), whose length counts as a distance from the axis.
+float joint_light_path_in(LightFrame f, vec3 n0, vec3 n1, vec3 tip, vec2 radii, bvec2 open, vec3 P, vec3 offset,
+                          vec3 L) {
     float h = length(tip);
     vec3 axis = tip / max(h, EPS_DIVISOR);
     float z = dot(axis, P);
-    vec3 q = f.turn * (P - z * axis);
+    vec3 q = f.turn * offset;
     float w = mix(radii.x, radii.y, clamp(z / max(h, EPS_DIVISOR), 0.0, 1.0));
     float b = dot(q, f.Lp);
     float c = dot(q, q) - w * w;
@@ -101,7 +104,9 @@ float joint_light_path_in(LightFrame f, vec3 n0, vec3 n1, vec3 tip, vec2 radii, 
 }
 
 float joint_light_path(vec3 n0, vec3 n1, vec3 tip, vec2 radii, bvec2 open, vec3 P, vec3 L) {
-    return joint_light_path_in(joint_light_frame(n0, n1, tip, P, L), n0, n1, tip, radii, open, P, L);
+    vec3 axis = normalize(tip);
+    return joint_light_path_in(joint_light_frame(n0, n1, tip, P, L), n0, n1, tip, radii, open, P,
+                               P - axis * dot(axis, P), L);
 }
 
 // The side wall's part alone for a point q of the container's cross-section in unit space (radius 1): what

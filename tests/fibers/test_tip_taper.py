@@ -167,20 +167,22 @@ def test_taper_changes_the_image_and_thins_the_tips(renderer):
     assert pointed.hit.sum() < half.hit.sum() < blunt.hit.sum()
 
 
-def test_a_tapered_look_is_drawn_unfiltered_and_shows_its_tips(renderer):
-    """The filtered mode's coverage (glsl/fibers/coverage.glsl) knows no taper: filtered, blunt and pointed
-    frames of this scene were equal in every pixel (128x96, coverage summed 1484.3 both, where the exact
-    hits go 1423 -> 1176). Until it tapers, a tapered look under the default (filter on) is drawn
-    unfiltered: its tips show."""
+def test_a_tapered_look_is_filtered_and_shows_its_tips(renderer):
+    """The filtered mode's coverage (glsl/fibers/coverage.glsl) takes each fiber's width where the ray passes
+    it. Before it did, filtered blunt and pointed frames of this scene were equal in every pixel (128x96,
+    coverage summed 1484.3 both, where the exact hits go 1423 -> 1176) and a tapered look was drawn
+    unfiltered; now the filtered pointed frame covers less, as its exact hits do, and keeps their ids."""
     p0, _, cam = setup(renderer, {**ONE, "quality.filter": "coverage"}, {"elevation": 0.0})
     pointed_p = p0.replace(**POINTED)
-    assert filtered(p0, "exact") and not filtered(pointed_p, "exact")
+    assert filtered(p0, "exact") and filtered(pointed_p, "exact")
     pointed = renderer.render(pointed_p, cam, SIZE, outputs=("color", "ids"))
+    blunt = renderer.render(p0, cam, SIZE, outputs=("color", "ids"))
     unfiltered = renderer.render(pointed_p.replace(**{"quality.filter": "off"}), cam, SIZE, outputs=("color", "ids"))
-    assert np.array_equal(pointed.color, unfiltered.color) and np.array_equal(pointed.ids, unfiltered.ids)
-    blunt = renderer.render(p0.replace(**{"quality.filter": "off"}), cam, SIZE, outputs=("color", "ids"))
-    assert pointed.hit.sum() < 0.9 * blunt.hit.sum()
-    assert np.any(blunt.color != pointed.color)
+    assert np.array_equal(pointed.ids, unfiltered.ids), "ids stay the exact traversal's"
+    assert not np.array_equal(pointed.color, unfiltered.color), "the pointed look is filtered"
+    blunt_hits = renderer.render(p0.replace(**{"quality.filter": "off"}), cam, SIZE, outputs=("ids",)).hit.sum()
+    assert pointed.coverage.sum() < 0.92 * blunt.coverage.sum(), (pointed.coverage.sum(), blunt.coverage.sum())
+    assert unfiltered.hit.sum() < 0.9 * blunt_hits
 
 
 def test_cone_normal_leans_toward_the_tip(renderer):
