@@ -38,6 +38,10 @@ const float EPS_WALK_CUT = 1e-5;
 // Relative margin past a hit known elsewhere (traverse.glsl: limit_traversal): a fiber hit up to this much
 // behind it is still found, so a tie (a fiber crossing a joint, in both segments) is broken as before.
 const float EPS_KNOWN = 1e-4;
+// Relative rounding of a world t, in float32 units of |t| (32 ulp), that the known hit's margin adds at the
+// container's scale: t - tb loses digits where a small container lies far away (harolongo: 51 units off,
+// radii of hundredths), and a tie one ulp apart then fell outside EPS_KNOWN.
+const float EPS_KNOWN_T = 4e-6;
 // Where a traced shadow ray starts, in container radii along the light from the hit, so it leaves the
 // fiber it starts on (fiber_shading.glsl).
 const float EPS_SHADOW_START = 1e-3;

@@ -57,7 +57,9 @@ void test_fiber(Segment seg, FiberRay fr, int ring, int j, inout FiberHit best) 
 // fiber then costs its entry only, and one that it crosses partly (a joint) its stretch before the hit.
 void limit_traversal(Segment seg, inout UnitRay ur, float tKnown) {
     float s = tKnown < INF ? world_to_unit_s(seg, ur, tKnown) : INF;
-    ur.sKnown = s < INF ? s + EPS_KNOWN * (abs(s) + 1e-2) : INF;
+    float t = min(tKnown, 1e30);
+    float rounding = EPS_KNOWN_T * (abs(t) + abs(ur.tb)) * ur.Dlen / (ur.wO * ur.wO);
+    ur.sKnown = s < INF ? s + EPS_KNOWN * (abs(s) + 1e-2) + rounding : INF;
 }
 
 FiberHit traverse_fibers(Segment seg, UnitRay ur) {

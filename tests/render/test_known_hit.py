@@ -12,6 +12,7 @@ import pytest
 from app.scene.containers import container_rows
 from tests.support.glsl_harness import run_fragment
 from tests.support.ids import gpu_ids, reference_ids, setup
+from tests.support.paths import HAIR_DATA
 
 SIZE = (112, 84)
 # a tapered, bent chain: the taper makes the unit-space map projective (world_to_unit_s's w term), the bend
@@ -113,3 +114,35 @@ def test_world_to_unit_s_inverts_unit_to_world_t(ctx, taper):
     s, back = out[..., 0], out[..., 1]
     assert np.allclose(back, s, rtol=2e-5, atol=2e-6), np.abs(back - s).max()
     assert (out[..., 3] < 0.0).all()
+
+
+# --- a tie far away: two guides' fibers one float32 t apart, seen by harolongo's small distant containers ---
+@pytest.mark.skipif(not (HAIR_DATA / "harolongo.data").exists(), reason="shared hair data not found")
+def test_a_far_tie_is_broken_as_without_the_bound(renderer):
+    """harolongo at 256x144 (the id sums' size), pixel row 36, column 124: fibers of two guides meet the ray
+    at one float32 t (51.29 units off; containers hundredths of a unit wide). The walk breaks the tie by
+    segment; the float64 reference names the fiber that wins. The known hit's margin once left that fiber
+    out: t - tb loses digits at this scale (EPS_KNOWN_T now counts them), and the other guide's fiber won."""
+    from types import SimpleNamespace
+
+    from app import reference
+    from app.cli import resolve_params
+    from app.render.camera import Camera
+    from app.scene.generators import build_scene
+    from tests.render.test_groom_walk import rays_meeting
+
+    p, _ = resolve_params(str(HAIR_DATA / "harolongo.data"), ["quality.filter=off"])
+    scene = build_scene(p)
+    renderer.set_scene(scene)
+    size, (row, col) = (256, 144), (36, 124)
+    cam = Camera.from_params(p, scene, aspect=size[0] / size[1])
+    ids = renderer.render(p, cam, size, outputs=("ids",), mode="exact").ids
+    ro, rd = cam.rays(*size)
+    for y in range(row - 1, row + 2):
+        for x in range(col - 1, col + 2):
+            k = y * size[0] + x
+            cand = rays_meeting(scene, ro[k:k + 1], rd[k:k + 1])[0]
+            sub = SimpleNamespace(origin=scene.origin, segments=scene.segments[cand])
+            ref = reference.brute_nearest(sub, p, ro[k:k + 1], rd[k:k + 1], t_near=cam.near)
+            want = (0, 0, 0) if not ref.hit[0] else (ref.guide[0] + 1, ref.ring[0], ref.fiber[0])
+            assert tuple(int(v) for v in ids[y, x, :3]) == tuple(int(v) for v in want), (y, x)
