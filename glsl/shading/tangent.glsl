@@ -80,6 +80,13 @@ LightFrame joint_light_frame(vec3 n0, vec3 n1, vec3 tip, vec3 P, vec3 L) {
     return f;
 }
 
+// How far the light's line from q (an offset turned by the frame, c = |q|^2 - w^2 for a wall of radius w)
+// runs along L to the wall: the larger root of |q + t Lp| = w (INF for a light along the blended axis).
+float joint_light_wall(LightFrame f, vec3 q, float c) {
+    float b = dot(q, f.Lp);
+    return f.dd > EPS_LIGHT_AXIS2 ? (-b + sqrt(max(b * b - f.dd * c, 0.0))) / f.dd : INF;
+}
+
 // The path from P, whose offset from the segment's axis is `offset`, in a frame taken at P. The offset is
 // turned whole: the explicit reference's interpolated strands store a depth along the axis in it (app/bench/
 // strand_reference.py: "at depth 1, on the wall"), whose length counts as a distance from the axis.
@@ -90,9 +97,7 @@ float joint_light_path_in(LightFrame f, vec3 n0, vec3 n1, vec3 tip, vec2 radii, 
     float z = dot(axis, P);
     vec3 q = f.turn * offset;
     float w = mix(radii.x, radii.y, clamp(z / max(h, EPS_DIVISOR), 0.0, 1.0));
-    float b = dot(q, f.Lp);
-    float c = dot(q, q) - w * w;
-    float side = f.dd > EPS_LIGHT_AXIS2 ? (-b + sqrt(max(b * b - f.dd * c, 0.0))) / f.dd : INF;
+    float side = joint_light_wall(f, q, dot(q, q) - w * w);
     float d0 = dot(n0, P);
     float d1 = dot(n1, tip - P);
     float along0 = dot(n0, L);
@@ -113,10 +118,7 @@ float joint_light_path(vec3 n0, vec3 n1, vec3 tip, vec2 radii, bvec2 open, vec3 
 // the filtered scan takes per fiber, as it took the segment's own cylinder before (the root and tip are
 // left to the single fiber's shading).
 float joint_light_path_unit(LightFrame f, vec2 q) {
-    vec3 qt = f.turn[0] * q.x + f.turn[1] * q.y;
-    float b = dot(qt, f.Lp);
-    float c = dot(q, q) - 1.0;
-    return f.dd > EPS_LIGHT_AXIS2 ? max((-b + sqrt(max(b * b - f.dd * c, 0.0))) / f.dd, 0.0) : INF;
+    return max(joint_light_wall(f, f.turn[0] * q.x + f.turn[1] * q.y, dot(q, q) - 1.0), 0.0);
 }
 
 #endif
