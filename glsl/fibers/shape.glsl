@@ -211,11 +211,29 @@ RingPoint ring_point(Segment seg, UnitRay ur, float s, int ring) {
 // end takes its curl from the near end's by a rotation instead of another sine and cosine.
 struct CurlTurn { vec2 h; vec2 w; };    // (cos, sin) of a - tau (helix) and of a (wave)
 
+// (cos, sin) of 2 pi x for x in turns, from one reduction shared by two short polynomials: a curled
+// fiber's test takes a pair per candidate, and llvmpipe's cos and sin reduce the angle each on its own
+// (2-3.5 % of the bench's curled and combined frames, one process). The reduction in turns is exact
+// (x - round(x)); the polynomials (Cephes' sinf and cosf on [-pi/4, pi/4]) are within ~1e-7 of the true
+// values (tests/gl/test_glsl_functions.py).
+vec2 turn_cos_sin(float x) {
+    float r = x - round(x);                 // [-1/2, 1/2] turns
+    float q = round(4.0 * r);               // the quarter turn nearest
+    float y = (r - 0.25 * q) * TWO_PI;      // [-pi/4, pi/4] radians
+    float y2 = y * y;
+    float sn = y + y * y2 * (-1.6666654611e-1 + y2 * (8.3321608736e-3 + y2 * -1.9515295891e-4));
+    float cs = 1.0 - 0.5 * y2 + y2 * y2 * (4.166664568298827e-2 + y2 * (-1.388731625493765e-3
+             + y2 * 2.443315711809948e-5));
+    int k = int(q) & 3;                     // turn (cs, sn) by k quarter turns
+    vec2 a = (k & 1) == 0 ? vec2(cs, sn) : vec2(-sn, cs);
+    return (k & 2) == 0 ? a : -a;
+}
+
 CurlTurn curl_turn(float curlPhase, RingPoint P) {
-    float a = TWO_PI * (sCurlFrequency * P.v + curlPhase);
+    float a = sCurlFrequency * P.v + curlPhase;         // turns
     CurlTurn c;
-    c.h = vec2(cos(a - P.tau), sin(a - P.tau));
-    c.w = vec2(cos(a), sin(a));
+    c.h = turn_cos_sin(a - P.tau * (1.0 / TWO_PI));
+    c.w = turn_cos_sin(a);
 #if SHAPE_CURL == 1
     c.w = vec2(1.0, 0.0);
 #elif SHAPE_CURL == 2

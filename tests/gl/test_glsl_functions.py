@@ -90,3 +90,31 @@ def test_circle_interval_matches_float64(values):
     both = hit & got_hit
     assert np.allclose(v[..., 2][both], t0[both], atol=2e-5)
     assert np.allclose(v[..., 3][both], t1[both], atol=2e-5)
+
+
+TURNS = """#version 450 core
+#include "fibers/shape.glsl"
+uniform float uSpan;
+layout(location = 0) out vec4 outValue;
+void main() {
+    float x = (floor(gl_FragCoord.y) * 64.0 + floor(gl_FragCoord.x)) / 4096.0 * 2.0 * uSpan - uSpan;
+    outValue = vec4(turn_cos_sin(x), x, 0.0);
+}
+"""
+
+
+@pytest.mark.parametrize("span", [1.0, 9.0, 70.0])
+def test_turn_cos_sin_is_the_float64_cosine_and_sine(ctx, span):
+    """The curl's cosine and sine in turns (shape.glsl: turn_cos_sin) against float64, over the angles a
+    curled fiber's test meets: a phase in [0, 1), less a twist of up to 8 turns, plus a curl frequency of
+    up to 64 turns over the guide. The error is the polynomial's (~1e-7) plus the float32 rounding of x
+    itself, which grows with |x| as it does for the built-in cos and sin."""
+    from tests.support.glsl_harness import run_fragment
+
+    out = run_fragment(ctx, TURNS, (64, 64), lambda prog: setattr(prog["uSpan"], "value", span))
+    x = out[..., 2]           # the float32 argument the shader used, exact in float64
+    err = np.hypot(out[..., 0] - np.cos(2 * np.pi * x), out[..., 1] - np.sin(2 * np.pi * x))
+    assert np.isfinite(out[..., :2]).all()
+    assert err.max() < 4e-7, err.max()
+    quarters = np.isclose(4 * x, np.round(4 * x), atol=0, rtol=0)
+    assert quarters.any() and (err[quarters] < 2e-7).all()      # exact quarter turns land on the axes
