@@ -6,8 +6,9 @@ other's (glsl/shading/tangent.glsl). Blended by the segment's height, it met a t
 another weight on each side for every fiber off the axis, so the tangent stepped at joints, and the normal,
 square to the straight fibers, kinked there; now the blend follows the planes and the normal turns with
 it. This report measures that per scene (a strongly bent strand close up, sintel_hair.tfx's crown close up
-and the whole groom; the close-up again without the density self-shadow, whose estimate steps at joints
-by itself) and per method (virtual, explicit):
+and the whole groom; the close-up again without the self-shadow, which makes each fiber's brightness follow
+its depth, so neighbouring fibers differ, and most of a joint's pixel pairs are neighbouring fibers: see
+``joint_excess``) and per method (virtual, explicit):
 
   tangent step   numpy, per joint of the scene: the largest angle between the two segments' shading
                  tangents at points of the joint plane at the container's wall (24 around it), for the
@@ -110,6 +111,16 @@ def joint_tangent_steps(segments: np.ndarray, blend, points: int = WALL_POINTS) 
     return out
 
 
+def joint_bends(segments: np.ndarray) -> np.ndarray:
+    """Per joint of the scene's rows, the angle between the two segments' axes in degrees (the tangent
+    steps above are the blend's error at the wall, not the bend: sintel's height blend stepped 0.6 degrees
+    at the median joint, which bends 9)."""
+    rows = np.asarray(segments, np.float64)
+    joints = np.nonzero(rows[1:, 19] == rows[:-1, 19])[0]
+    axes = _unit(rows[:, 4:7] - rows[:, 0:3])
+    return np.degrees(np.arccos(np.clip(np.sum(axes[joints] * axes[joints + 1], -1), -1.0, 1.0)))
+
+
 def lobe_deg(roughness: float = ROUGHNESS) -> float:
     """The width (sigma) of glsl/shading/marschner.glsl's R lobe in degrees of tangent tilt: a Gaussian of
     beta sqrt 2 in sinL + sinV, where tilting the tangent by d moves sinL + sinV by about 2 d."""
@@ -118,20 +129,32 @@ def lobe_deg(roughness: float = ROUGHNESS) -> float:
 
 
 # --- the pictures' metric ------------------------------------------------------------------------------------
-def joint_excess(color: np.ndarray, ids: np.ndarray, levels: float = JUMP_LEVELS) -> tuple[float, int]:
+def joint_excess(color: np.ndarray, ids: np.ndarray, levels: float = JUMP_LEVELS,
+                 same_fiber: bool | None = None) -> tuple[float, int]:
     """(percentage of joint pairs whose luminance step exceeds its in-segment neighbours' by more than
     ``levels``, number of joint pairs). A joint pair: two adjacent pixels (across or down) of the same
     guide in different segments; its neighbours: the pixel pairs continuing it on either side, each
-    within the segment of the pixel it continues. Pairs with neither neighbour do not count."""
+    within the segment of the pixel it continues. Pairs with neither neighbour do not count.
+    ``same_fiber``: True counts only the pairs whose two pixels show one fiber (ids' ring and fiber), False
+    only those that show two, None all. Each fiber crosses a joint plane at its own height in the picture,
+    so the boundary between two segments' pixels runs along fiber edges in steps: most joint pairs (81% on
+    sintel's close-up) are two neighbouring fibers, compared with neighbours inside each fiber, and count
+    how much fibers differ (the self-shadow makes each fiber's brightness follow its depth), not a joint;
+    a plane through the middle of every segment measured 12.8% there against 16.2% at the joints. The
+    pairs of one fiber say whether a fiber's shading runs on across its joint."""
     lum = np.asarray(color, np.float64)[..., :3].mean(-1)
-    guide = np.asarray(ids, np.int64)[..., 0]
-    seg = np.asarray(ids, np.int64)[..., 3]
+    ids = np.asarray(ids, np.int64)
+    guide = ids[..., 0]
+    seg = ids[..., 3]
+    fiber = (ids[..., 1] << 32) + ids[..., 2]
     excess = []
-    for img_lum, img_guide, img_seg in ((lum, guide, seg), (lum.T, guide.T, seg.T)):
+    for img_lum, img_guide, img_seg, img_fiber in ((lum, guide, seg, fiber), (lum.T, guide.T, seg.T, fiber.T)):
         # pairs (x, x + 1) along rows of one guide
         same = (img_guide[:, :-1] > 0) & (img_guide[:, :-1] == img_guide[:, 1:])
         inner = same & (img_seg[:, :-1] == img_seg[:, 1:])
         joint = same & (img_seg[:, :-1] != img_seg[:, 1:])
+        if same_fiber is not None:
+            joint &= (img_fiber[:, :-1] == img_fiber[:, 1:]) == same_fiber
         step = np.abs(np.diff(img_lum, axis=1))
         left = np.full(step.shape, np.nan)
         right = np.full(step.shape, np.nan)
@@ -154,8 +177,8 @@ def subject_params(name: str):
         return Params({**BENT, **LOOK})
     p, _ = resolve_params(str(HAIR_DATA / "sintel_hair.tfx"), [])
     p = p.replace(**LOOK, **(CLOSE if name.startswith("sintel close-up") else {}))
-    # the density self-shadow estimate steps at joints of its own (each segment's straight cylinder):
-    # without it, what is left is the shading
+    # with the self-shadow, fibers at different depths differ by tens of levels, and a joint's pairs of
+    # neighbouring fibers count that (joint_excess): without it, what is left is the shading
     return p.replace(**{"look.self_shadow": "off"}) if name.endswith("no self-shadow") else p
 
 
@@ -222,7 +245,8 @@ def contact_sheet(before: dict, after: dict, path: Path, zoom: int = 1) -> None:
 
 COLUMNS = ["label", "scene", "method", "joint_pairs", "joint_excess_pct", "joint_excess_spread",
            "tangent_step_height_p50_deg", "tangent_step_height_p90_deg", "tangent_step_height_max_deg",
-           "tangent_step_plane_max_deg", "lobe_deg"]
+           "tangent_step_plane_max_deg", "lobe_deg", "joint_pairs_one_fiber", "joint_excess_one_fiber_pct",
+           "bend_p50_deg", "bend_p90_deg"]
 
 
 PICTURES = Path("out/bench-highlights")
@@ -243,6 +267,8 @@ def run(size=(960, 540), label: str = "after", out: Path | None = None, scenes=S
                 each = [joint_excess(c, i) for c, i in zip(colors, ids)]
                 pcts = [e[0] for e in each]
                 pct, n = float(np.mean(pcts)), int(np.mean([e[1] for e in each]))
+                one = [joint_excess(c, i, same_fiber=True) for c, i in zip(colors, ids)]
+                bends = joint_bends(scene.segments)
                 old = joint_tangent_steps(scene.segments, height_blended_axis)
                 new = joint_tangent_steps(scene.segments, joint_blended_axis)
                 rows.append({"label": label, "scene": name, "method": method, "joint_pairs": n,
@@ -250,10 +276,15 @@ def run(size=(960, 540), label: str = "after", out: Path | None = None, scenes=S
                              "tangent_step_height_p50_deg": float(np.median(old)),
                              "tangent_step_height_p90_deg": float(np.percentile(old, 90)),
                              "tangent_step_height_max_deg": float(old.max()),
-                             "tangent_step_plane_max_deg": float(new.max()), "lobe_deg": lobe_deg()})
+                             "tangent_step_plane_max_deg": float(new.max()), "lobe_deg": lobe_deg(),
+                             "joint_pairs_one_fiber": int(np.mean([e[1] for e in one])),
+                             "joint_excess_one_fiber_pct": float(np.nanmean([e[0] for e in one]))
+                             if any(e[1] for e in one) else float("nan"),
+                             "bend_p50_deg": float(np.median(bends)), "bend_p90_deg": float(np.percentile(bends, 90))})
                 pictures[f"{name}, {method}"] = colors[0]
                 print(f"{label} {name} {method}: joint excess {pct:.2f}% (spread {np.ptp(pcts):.2f}) of {n} "
-                      "pairs", flush=True)
+                      f"pairs; one fiber {rows[-1]['joint_excess_one_fiber_pct']:.2f}% of "
+                      f"{rows[-1]['joint_pairs_one_fiber']}", flush=True)
     finally:
         hc.release()
     if out is not None:
@@ -292,7 +323,9 @@ def write_outputs(rows, pictures, out: Path, label: str, size, command: str, ren
              f"the in-segment steps beside it by more than {JUMP_LEVELS:g} levels, the mean over {len(OFFSETS)} "
              f"frames at sub-pixel offsets (spread: largest less smallest). tangent_step_*: per joint, the "
              f"largest angle between the two segments' shading tangents at the container's wall, by the height "
-             f"blend (before) and the plane blend (after); lobe_deg: the R lobe's width.", "",
+             f"blend (before) and the plane blend (after); lobe_deg: the R lobe's width. joint_*_one_fiber: the "
+             f"joint pairs whose two pixels show one fiber (the rest are neighbouring fibers, whose difference "
+             f"the staircase of fiber edges along a joint counts); bend_*: the joints' bends.", "",
              "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
     lines += ["| " + " | ".join(fmt(r[k]) for k in COLUMNS) + " |" for r in table]
     if (pictures_dir / "pictures_before.npz").exists() and (pictures_dir / "pictures_after.npz").exists():

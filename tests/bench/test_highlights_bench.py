@@ -33,6 +33,28 @@ def test_a_step_at_the_joint_counts_a_gradient_through_it_does_not():
     assert hl.joint_excess(*small)[0] == 0.0          # "more than 8 levels"
 
 
+def test_pairs_of_one_fiber_and_of_two_are_told_apart():
+    """Rows 0-1 show fiber 0 on both sides of the joint, rows 2-3 fiber 0 left and fiber 1 right (a fiber edge
+    on the joint: the boundary between segments runs along fiber edges where fibers cross the joint plane
+    at different heights); only the edge steps."""
+    color, ids = _strip([100] * 6, [100] * 6)
+    color[2:, 6:] = 140.0
+    ids[2:, 6:, 2] = 1
+    assert hl.joint_excess(color, ids) == (50.0, 4)
+    assert hl.joint_excess(color, ids, same_fiber=True) == (0.0, 2)
+    assert hl.joint_excess(color, ids, same_fiber=False) == (100.0, 2)
+    ids[2:, 6:, 2] = 0
+    ids[2:, 6:, 1] = 1                               # another ring is another fiber too
+    assert hl.joint_excess(color, ids, same_fiber=False) == (100.0, 2)
+
+
+def test_joint_bends_of_a_known_guide():
+    th = math.radians(40.0)
+    guide = np.array([[[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [math.sin(th), 0.0, 1.0 + math.cos(th)]]])
+    rows = container_rows(guide, np.array([0.45]), 0.0, np.zeros(3))
+    assert np.allclose(hl.joint_bends(rows), [40.0], atol=1e-3)
+
+
 def test_other_guides_and_background_are_no_joint():
     color, ids = _strip([100] * 6, [200] * 6)
     ids[:, 6:, 0] = 2                                # another guide to the right: no joint of one guide
@@ -64,6 +86,7 @@ def test_tiny_run_writes_every_output(tmp_path):
         assert [r["method"] for r in rows] == ["virtual", "explicit"]
         for r in rows:
             assert r["joint_pairs"] >= 0 and r["tangent_step_plane_max_deg"] < 1e-3
+            assert 0 <= r["joint_pairs_one_fiber"] <= r["joint_pairs"] and r["bend_p50_deg"] > 30.0
     with open(tmp_path / "highlights.csv") as f:
         assert {r["label"] for r in csv.DictReader(f)} == {"before", "after"}
     assert (tmp_path / "contact_sheet.png").stat().st_size > 0
