@@ -308,7 +308,9 @@ def write_outputs(rows, pictures, out: Path, label: str, size, command: str, ren
         w.writerows(kept + [{k: r[k] for k in COLUMNS} for r in rows])
     with open(path, newline="") as f:
         table = list(csv.DictReader(f))
-    def fmt(v: str) -> str:
+    def fmt(v: str | None) -> str:
+        if v is None or v == "":            # a column newer than the other label's run
+            return ""
         try:
             f = float(v)
         except ValueError:
@@ -333,6 +335,9 @@ def write_outputs(rows, pictures, out: Path, label: str, size, command: str, ren
         after = dict(np.load(pictures_dir / "pictures_after.npz"))
         contact_sheet(before, after, out / "contact_sheet.png")
         lines += ["", "![before | after | change x4, per scene and method](contact_sheet.png)"]
+    elif (out / "contact_sheet.png").exists():     # this run's pictures match it where nothing was re-rendered
+        lines += ["", "![before | after | change x4, per scene and method, from the last run that had both "
+                  "labels' pictures](contact_sheet.png)"]
     (out / "README.md").write_text("\n".join(lines) + "\n")
 
 

@@ -91,3 +91,20 @@ def test_tiny_run_writes_every_output(tmp_path):
         assert {r["label"] for r in csv.DictReader(f)} == {"before", "after"}
     assert (tmp_path / "contact_sheet.png").stat().st_size > 0
     assert "contact_sheet.png" in (tmp_path / "README.md").read_text()
+
+
+def test_a_csv_from_before_the_newer_columns_is_kept(tmp_path):
+    """The other label's rows may come from a run that had fewer columns: they stay, and the table leaves
+    their new cells empty instead of failing."""
+    old = [c for c in hl.COLUMNS if c not in ("joint_pairs_one_fiber", "joint_excess_one_fiber_pct",
+                                              "bend_p50_deg", "bend_p90_deg")]
+    with open(tmp_path / "highlights.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, old)
+        w.writeheader()
+        w.writerow({c: ("before" if c == "label" else "bent strand" if c == "scene" else
+                        "virtual" if c == "method" else "1.5") for c in old})
+    hl.run(size=(48, 27), label="after", out=tmp_path, scenes=("bent strand",), pictures_dir=tmp_path / "p")
+    with open(tmp_path / "highlights.csv") as f:
+        labels = [r["label"] for r in csv.DictReader(f)]
+    assert labels.count("before") == 1 and labels.count("after") == 2
+    assert "| before | bent strand | virtual |" in (tmp_path / "README.md").read_text()
