@@ -219,30 +219,16 @@ def test_traced_shadows_light_the_filtered_frame_as_the_reference(renderer, name
     320x180 against the 16x16 reference, the default preset 13. Held to a 4x4 supersampled reference
     (averaged in linear light): the filtered frame's mean brightness within a few levels of it, as the
     unfiltered frame's is, and its error no worse than the unfiltered frame's."""
-    from app.bench.antialias import error_stats, reference_offsets, to_linear, to_srgb_levels
-    from app.presets import resolve_params
+    from app.bench.antialias import error_stats, load_subject, render_mode, render_reference
     from tests.support.paths import HAIR_DATA
 
-    if name == "default":
-        p = find_preset(name).params
-    else:
-        path = HAIR_DATA / name
-        if not path.exists():
-            pytest.skip(f"shared hair data not found at {path}")
-        p = resolve_params(str(path), [])[0]
-    p = p.replace(**{"quality.supersample": 1, "quality.msaa": 0, "look.self_shadow": "traced"})
-    scene = build_scene(p)
-    renderer.set_scene(scene)
-    cam = Camera.from_params(p, scene, aspect=SIZE[0] / SIZE[1])
-    lin, cov = 0.0, 0.0
-    offsets = reference_offsets(4)
-    for o in offsets:
-        f = renderer.render(p.replace(**OFF), cam, SIZE, outputs=("color",), offset=o)
-        lin, cov = lin + to_linear(f.color), cov + f.coverage
-    ref = to_srgb_levels(lin / len(offsets))
+    if name != "default" and not (HAIR_DATA / name).exists():
+        pytest.skip(f"shared hair data not found at {HAIR_DATA / name}")
+    s = load_subject(renderer.ctx, renderer.programs, name, SIZE)      # the antialias bench's subject
+    s.p = s.p.replace(**{"look.self_shadow": "traced"})
+    ref, cov = render_reference(s, SIZE, n=4)
     covered = cov > 0
-    shown = {m: renderer.render(p.replace(**v), cam, SIZE, outputs=("color",)).color.astype(np.float64)
-             for m, v in (("off", OFF), ("on", ON))}
+    shown = {"off": render_mode(s, "none", SIZE), "on": render_mode(s, "filtered", SIZE)}
     bias = {m: float((img.mean(-1) - ref.mean(-1))[covered].mean()) for m, img in shown.items()}
     err = {m: error_stats(img, ref, covered)[0] for m, img in shown.items()}
     assert abs(bias["off"]) < 4.0, f"the unfiltered frame should be as bright as its reference: {bias}"
