@@ -95,8 +95,10 @@ def shape_twist(sh: Shape, v, ring):
 
 
 def shape_scale(sh: Shape, v):
-    """E(v): the ellipsoid's scale of the cross-section at guide parameter v (1 at the middle)."""
-    x = sh.ellipsoid * (2.0 * np.asarray(v) - 1.0)
+    """E(v): the ellipsoid's scale of the cross-section at guide parameter v (1 at the middle), v taken
+    within the guide: a slab's wedge past a tilted root or tip cap reaches beyond [0, 1] (glsl/fibers/
+    shape.glsl says why)."""
+    x = sh.ellipsoid * (2.0 * np.clip(v, 0.0, 1.0) - 1.0)
     return np.sqrt(np.maximum(0.0, 1.0 - x * x))
 
 

@@ -98,8 +98,11 @@ float shape_twist(float v, int ring) {
     return sgn * TWO_PI * sTwist * t;
 }
 
+// v is taken within the guide, [0, 1]: the wedge of a slab past a tilted root or tip cap reaches beyond
+// it (Bangs_100.hair to v = 1.39), where the formula would close every ring onto the axis, and every
+// bound that takes the segment's smallest scale with it (renderer.py: _shaped_arc_passes).
 float shape_scale(float v) {
-    float x = sEllipsoid * (2.0 * v - 1.0);
+    float x = sEllipsoid * (2.0 * clamp(v, 0.0, 1.0) - 1.0);
     return sqrt(max(0.0, 1.0 - x * x));
 }
 

@@ -195,3 +195,25 @@ def test_curved_lanes_in_their_own_order_stay_within_the_budget(renderer, monkey
     assert own.hit.sum() > 100 and own.iters.max() < LOOP_CAP and by_ring.iters.max() < LOOP_CAP
     assert (own.ids[..., :3] == brute.ids[..., :3]).all()
     assert (by_ring.ids[..., :3] == brute.ids[..., :3]).all()
+
+
+def test_an_ellipsoid_on_a_groom_with_tilted_caps_needs_one_draw():
+    """A groom's root and tip caps are tilted, so the wedges of its end slabs reach past the guide
+    (Bangs_100.hair to v = 1.39). The ellipsoid's scale holds its end value there (shape.glsl:
+    shape_scale); the formula taken on would close every ring onto the axis, the bound would then take
+    whole rings on every chord piece, and the frame three draws (2.8x the straight frame's time)."""
+    from app.presets import find_preset
+    from app.render.renderer import draw_ranges, needs_ring_order, traversals_per_fragment
+    from app.scene.generators import build_scene
+    from tests.support.paths import HAIR_DATA
+
+    groom = HAIR_DATA / "Bangs_100.hair"
+    if not groom.exists():
+        pytest.skip(f"{groom} is not here")
+    p = find_preset("default").params.replace(**{"scene.generator": "groom", "scene.groom_file": str(groom),
+                                                 "shape.ellipsoid": 0.6})
+    scene = build_scene(p)
+    rays = traversals_per_fragment(p, "exact")
+    for walks in (0, 2):        # the proxies strategy, the walk (renderer.py)
+        assert len(draw_ranges(p, scene, "exact", rays, walks=walks)) == 1
+        assert not needs_ring_order(p, scene, "exact", rays, walks)

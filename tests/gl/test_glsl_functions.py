@@ -118,3 +118,30 @@ def test_turn_cos_sin_is_the_float64_cosine_and_sine(ctx, span):
     assert err.max() < 4e-7, err.max()
     quarters = np.isclose(4 * x, np.round(4 * x), atol=0, rtol=0)
     assert quarters.any() and (err[quarters] < 2e-7).all()      # exact quarter turns land on the axes
+
+
+SCALES = """#version 450 core
+#include "fibers/shape.glsl"
+layout(location = 0) out vec4 outValue;
+void main() {
+    float v = floor(gl_FragCoord.x) / 63.0 * 2.0 - 0.5;        // [-0.5, 1.5]: past both ends of the guide
+    outValue = vec4(shape_scale(v), v, 0.0, 0.0);
+}
+"""
+
+
+@pytest.mark.parametrize("ellipsoid", [0.3, 0.6, 1.0])
+def test_shape_scale_is_the_float64_scale_and_holds_past_the_guide(ctx, ellipsoid):
+    """The ellipsoid's scale (shape.glsl: shape_scale) against its float64 twin, over heights past both
+    ends of the guide: a groom's tilted root and tip caps give slabs whose wedges reach there
+    (Bangs_100.hair to v = 1.39), and the scale holds its end value rather than closing onto the axis."""
+    from app.fibers import Shape, shape_scale
+    from tests.support.glsl_harness import run_fragment
+
+    out = run_fragment(ctx, SCALES, (64, 1), lambda prog: setattr(prog["uEllipsoid"], "value", ellipsoid))
+    v = out[0, :, 1]
+    want = shape_scale(Shape(ellipsoid, 0.0, 0, 0.0, 0.0, 0), v)
+    assert np.allclose(out[0, :, 0], want, atol=2e-7)
+    ends = shape_scale(Shape(ellipsoid, 0.0, 0, 0.0, 0.0, 0), np.array([0.0, 1.0]))
+    assert np.allclose(want[v < 0], ends[0]) and np.allclose(want[v > 1], ends[1])
+    assert (v < -0.4).any() and (v > 1.4).any()
