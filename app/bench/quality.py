@@ -7,6 +7,9 @@ Sections (each a Markdown table, a CSV and pictures in DIR):
              exact at 640x360 and 1280x720, timed round-robin: ms per frame (wall and CPU) and tests per covered pixel
              beside their ratio to straight, pixels whose fiber differs from brute; the sliders' extremes
              (loop run-out, NaN, exact == brute)
+  shape-grooms  the shapes section's curled, twisted and combined settings on the five shared grooms (their
+             own segments), exact at 640x360: CPU ms per frame beside the same groom straight, tests per
+             covered pixel, the fiber ranges the loop budget splits a frame into
   antialias  none, supersample 2 and 3, MSAA 2 and 4: ms per frame, and stability: pixels whose fiber
              id or colour changes when the camera moves a tenth of a pixel
   shadows    self-shadowing off, density estimate, traced shadow ray: cost and difference
@@ -223,6 +226,51 @@ def _shape_extremes(b: Bench, size) -> list[dict]:
     return rows
 
 
+def shape_grooms_section(b: Bench, size, out: Path, bar) -> list[dict]:
+    """The shapes section's settings on the five shared grooms, as a groom opens (resolve_params), each
+    groom with its own segments: CPU ms per frame, exact mode, round-robin per groom, beside the same
+    groom's straight frame; fiber tests per covered pixel, the visibility strategy and the fiber ranges
+    the loop budget splits a frame into (renderer.py: draw_ranges; each range is a pass of its own). Brute force is not run here (the shapes section holds exact == brute)."""
+    from ..presets import resolve_params
+    from ..render.renderer import draw_ranges, traversals_per_fragment
+    from .grooms import GROOM_FILES, HAIR_DATA
+
+    rows = []
+    for groom in GROOM_FILES:
+        path = HAIR_DATA / groom
+        if not path.exists():
+            print(f"shape-grooms: {path} not found, skipped (expects ../shared/hair-data beside the checkout)")
+            bar.update()
+            continue
+        base, _ = resolve_params(str(path), [])
+        scene = build_scene(base)
+        runs = {}
+        for name, values in SHAPES.items():
+            p = base.replace(**{k: v for k, v in values.items() if k != "scene.segments"}, **UNFILTERED)
+            r = Renderer(b.ctx, b.renderer.programs)
+            r.set_scene(scene)
+            runs[name] = (p, r, Camera.from_params(p, scene, aspect=size[0] / size[1]))
+        timing = _round_robin(b, runs, size, "exact")
+        for name, (p, r, cam) in runs.items():
+            f = r.render(p, cam, size, outputs=("cost",), mode="exact")
+            covered = f.cost[..., 2] > 0
+            rows.append({"groom": groom, "shape": name, "segments": len(scene.segments),
+                         "cpu_ms": timing[name][2], "tests_per_px": float(f.cost[..., 0][covered].mean()),
+                         "visibility": r.visibility(p, cam, size, "exact"),
+                         "ranges": len(draw_ranges(p, scene, "exact", traversals_per_fragment(p, "exact"),
+                                                   walks=2 if r.visibility(p, cam, size, "exact") == "walk" else 0))})
+            r.release_targets()
+        for row in rows:
+            if row["groom"] == groom:
+                base_row = next(x for x in rows if x["groom"] == groom and x["shape"] == "straight")
+                row["cpu_vs_straight"] = row["cpu_ms"] / base_row["cpu_ms"]
+                row["tests_vs_straight"] = row["tests_per_px"] / base_row["tests_per_px"]
+        bar.update()
+    order = ["groom", "segments", "shape", "cpu_ms", "cpu_vs_straight", "tests_per_px", "tests_vs_straight",
+             "visibility", "ranges"]
+    return [{k: r[k] for k in order} for r in rows]
+
+
 def _save_sheet(images: list, path: Path, per_row: int = 4) -> None:
     """Images side by side, ``per_row`` to a row (blank tiles pad the last one)."""
     if not images:
@@ -310,8 +358,8 @@ def shadows_section(b: Bench, size, out: Path, bar) -> list[dict]:
     return rows
 
 
-SECTIONS = {"traversal": traversal_section, "shapes": shapes_section, "antialias": antialias_section,
-            "shadows": shadows_section, "hash": hash_section}
+SECTIONS = {"traversal": traversal_section, "shapes": shapes_section, "shape-grooms": shape_grooms_section,
+            "antialias": antialias_section, "shadows": shadows_section, "hash": hash_section}
 
 
 def write_table(rows: list[dict], path: Path) -> str:
@@ -344,7 +392,7 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     b = Bench(reps=3 if args.quick else 10)
     size = (320, 180) if args.quick else (640, 360)
-    steps = {"traversal": 3, "shapes": 13, "antialias": 5, "shadows": 3, "hash": 2}
+    steps = {"traversal": 3, "shapes": 13, "shape-grooms": 5, "antialias": 5, "shadows": 3, "hash": 2}
     command = " ".join(["python -m app.bench.quality", *args.sections] + (["--quick"] if args.quick else []))
     header = (f"Date {date.today()}, commit {short_commit()}, `{command}`. "
               f"Machine: {platform.processor() or platform.machine()}, {b.gl.renderer}, {b.gl.version}. "
