@@ -124,3 +124,25 @@ def test_grooms_targets_from_rows():
     met = [r["met"] for r in got]
     assert met == [True, True, False, False]            # frame 2.0x CPU; entered 1.9; tests 41; Table 4 2.2x CPU
     assert "3.50x wall" in got[0]["measured"] and "1.80x wall" in got[3]["measured"]
+
+
+def test_shape_grooms_section_measures_each_shape_against_the_groom_straight(ctx, monkeypatch, tmp_path):
+    """The quality bench's shape-grooms section on one shared groom (the smallest, at a small size): a row
+    per shape with its ratio to the same groom's straight frame, and one fiber range each."""
+    import app.bench.grooms as grooms
+    from app.bench.quality import Bench, shape_grooms_section
+
+    if not (grooms.HAIR_DATA / "Ratboy_mohawk.tfx").exists():
+        pytest.skip("the shared grooms are not here")
+    monkeypatch.setattr(grooms, "GROOM_FILES", ("Ratboy_mohawk.tfx",))
+
+    class Bar:
+        def update(self):
+            pass
+
+    b = Bench(reps=1)
+    rows = shape_grooms_section(b, (96, 54), tmp_path, Bar())
+    assert [r["shape"] for r in rows] == ["straight", "curled", "twisted", "combined"]
+    assert rows[0]["cpu_vs_straight"] == 1.0 and all(r["cpu_ms"] > 0 for r in rows)
+    assert all(r["tests_per_px"] > 0 and r["ranges"] == 1 for r in rows)
+    assert {r["groom"] for r in rows} == {"Ratboy_mohawk.tfx"} and rows[0]["segments"] > 1000
