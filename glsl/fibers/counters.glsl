@@ -17,8 +17,8 @@ int gIters = 0;
 // fibers over draws so that should never happen (renderer.py: draw_ranges); should it happen anyway, a
 // loop of two passes, a length the compiler cannot know, run after the traversal, stops after one, and
 // gIters is raised to LOOP_CAP so that the iters and cost outputs say so instead of a fiber going missing
-// in silence. Only the cost pass, whose outputs report it, pays for the canary: a loop costs a SIMD batch
-// at least one pass of its body even where no lane needs it.
+// in silence. Only the cost pass, whose outputs report it, pays for the canary: its loop runs both passes in
+// every lane.
 const int LOOP_CAP = 65535;
 
 void loop_canary() {
