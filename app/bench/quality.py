@@ -230,7 +230,8 @@ def shape_grooms_section(b: Bench, size, out: Path, bar) -> list[dict]:
     """The shapes section's settings on the five shared grooms, as a groom opens (resolve_params), each
     groom with its own segments: CPU ms per frame, exact mode, round-robin per groom, beside the same
     groom's straight frame; fiber tests per covered pixel, the visibility strategy and the fiber ranges
-    the loop budget splits a frame into (renderer.py: draw_ranges; each range is a pass of its own). Brute force is not run here (the shapes section holds exact == brute)."""
+    the loop budget splits a frame into (renderer.py: draw_ranges; each range is a pass of its own).
+    Brute force is not run here (the shapes section holds exact == brute)."""
     from ..presets import resolve_params
     from ..render.renderer import draw_ranges, traversals_per_fragment
     from .grooms import GROOM_FILES, HAIR_DATA
@@ -251,20 +252,22 @@ def shape_grooms_section(b: Bench, size, out: Path, bar) -> list[dict]:
             r.set_scene(scene)
             runs[name] = (p, r, Camera.from_params(p, scene, aspect=size[0] / size[1]))
         timing = _round_robin(b, runs, size, "exact")
+        mine = []
         for name, (p, r, cam) in runs.items():
             f = r.render(p, cam, size, outputs=("cost",), mode="exact")
             covered = f.cost[..., 2] > 0
-            rows.append({"groom": groom, "shape": name, "segments": len(scene.segments),
+            visibility = r.visibility(p, cam, size, "exact")
+            walks = 2 if visibility == "walk" else 0            # as the renderer's passes count them
+            mine.append({"groom": groom, "shape": name, "segments": len(scene.segments),
                          "cpu_ms": timing[name][2], "tests_per_px": float(f.cost[..., 0][covered].mean()),
-                         "visibility": r.visibility(p, cam, size, "exact"),
-                         "ranges": len(draw_ranges(p, scene, "exact", traversals_per_fragment(p, "exact"),
-                                                   walks=2 if r.visibility(p, cam, size, "exact") == "walk" else 0))})
+                         "visibility": visibility,
+                         "ranges": len(draw_ranges(p, scene, "exact", traversals_per_fragment(p, "exact"), walks))})
             r.release_targets()
-        for row in rows:
-            if row["groom"] == groom:
-                base_row = next(x for x in rows if x["groom"] == groom and x["shape"] == "straight")
-                row["cpu_vs_straight"] = row["cpu_ms"] / base_row["cpu_ms"]
-                row["tests_vs_straight"] = row["tests_per_px"] / base_row["tests_per_px"]
+        straight = mine[0]                                      # SHAPES begins with straight
+        for row in mine:
+            row["cpu_vs_straight"] = row["cpu_ms"] / straight["cpu_ms"]
+            row["tests_vs_straight"] = row["tests_per_px"] / straight["tests_per_px"]
+        rows += mine
         bar.update()
     order = ["groom", "segments", "shape", "cpu_ms", "cpu_vs_straight", "tests_per_px", "tests_vs_straight",
              "visibility", "ranges"]
