@@ -52,8 +52,9 @@ def frame_ms(ctx, fn, reps: int) -> tuple[float, float]:
 
 
 class Bench:
-    def __init__(self, reps: int):
-        self.gl = create_headless()
+    def __init__(self, reps: int, gl=None):
+        """``gl``: a HeadlessContext to render in (the tests' session context); default, a new one."""
+        self.gl = gl or create_headless()
         self.ctx = self.gl.ctx
         self.renderer = Renderer(self.ctx)
         self.reps = reps

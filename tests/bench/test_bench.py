@@ -126,7 +126,7 @@ def test_grooms_targets_from_rows():
     assert "3.50x wall" in got[0]["measured"] and "1.80x wall" in got[3]["measured"]
 
 
-def test_shape_grooms_section_measures_each_shape_against_the_groom_straight(ctx, monkeypatch, tmp_path):
+def test_shape_grooms_section_measures_each_shape_against_the_groom_straight(gl, monkeypatch, tmp_path):
     """The quality bench's shape-grooms section on one shared groom (the smallest, at a small size): a row
     per shape with its ratio to the same groom's straight frame, and one fiber range each."""
     import app.bench.grooms as grooms
@@ -140,7 +140,7 @@ def test_shape_grooms_section_measures_each_shape_against_the_groom_straight(ctx
         def update(self):
             pass
 
-    b = Bench(reps=1)
+    b = Bench(reps=1, gl=gl)          # the session's context: a second one would stay current after the test
     rows = shape_grooms_section(b, (96, 54), tmp_path, Bar())
     assert [r["shape"] for r in rows] == ["straight", "curled", "twisted", "combined"]
     assert rows[0]["cpu_vs_straight"] == 1.0 and all(r["cpu_ms"] > 0 for r in rows)
