@@ -127,7 +127,7 @@ def test_grooms_targets_from_rows():
 
 
 def test_shape_grooms_section_measures_each_shape_against_the_groom_straight(gl, monkeypatch, tmp_path):
-    """The quality bench's shape-grooms section on one shared groom (the smallest, at a small size): a row
+    """The quality bench's shape-grooms section on one shared groom (the quickest to render, at a small size): a row
     per shape with its ratio to the same groom's straight frame, and one fiber range each."""
     import app.bench.grooms as grooms
     from app.bench.quality import Bench, shape_grooms_section
