@@ -337,50 +337,27 @@ def unit_to_v(seg: Segment, z_unit):
 
 
 def ring_point(sh: Shape, seg: Segment, O, D, s, ring):
-    """The ray at s seen in the frame that turns with ring ``ring``'s twist: (v, E(v), tau, cos tau,
-    sin tau, x, y) with (x, y) = R(-tau) (O.xy + s D.xy)."""
+    """The ray at s and ring ``ring``'s shape at that height: (v, E(v), tau, x, y), (x, y) = O.xy + s D.xy
+    in the container's frame."""
     v = unit_to_v(seg, O[..., 2] + s * D[..., 2])
-    tau = shape_twist(sh, v, ring)
-    ct, st = np.cos(tau), np.sin(tau)
-    qx, qy = O[..., 0] + s * D[..., 0], O[..., 1] + s * D[..., 1]
-    return v, shape_scale(sh, v), tau, ct, st, ct * qx + st * qy, ct * qy - st * qx
+    return v, shape_scale(sh, v), shape_twist(sh, v, ring), O[..., 0] + s * D[..., 0], O[..., 1] + s * D[..., 1]
 
 
-def ring_frame_center(sh: Shape, rest_x, rest_y, curl_phase, P):
-    """c'(v) = E(v) rest + R(-tau(v)) curl(v): a fiber's centre in its ring's turning frame at point P."""
-    v, e, tau, ct, st = P[:5]
-    cx, cy = e * rest_x, e * rest_y
-    if sh.curl_amplitude > 0:
-        a = 2 * math.pi * (sh.curl_frequency * v + curl_phase)
-        if sh.curl_pattern == fibers.CURL_HELIX:
-            cx, cy = cx + sh.curl_amplitude * np.cos(a - tau), cy + sh.curl_amplitude * np.sin(a - tau)
-        else:
-            r2 = rest_x * rest_x + rest_y * rest_y
-            off = (r2 > 0) & (e > 0)
-            inv = 1.0 / np.sqrt(np.where(off, r2, 1.0))
-            ax, ay = np.where(off, -rest_y * inv, ct), np.where(off, rest_x * inv, -st)
-            k = sh.curl_amplitude * np.sin(a)
-            cx, cy = cx + k * ax, cy + k * ay
-    if sh.frizzed:                  # a fixed direction in this frame (shape.py: frizz_offset)
-        fx, fy = fibers.frizz_offset(sh, v, curl_phase)
-        cx, cy = cx + fx, cy + fy
-    return cx, cy
-
-
-def chord_pieces(sh: Shape, lay: RingLayout, length, dv, sa, ring, e_lo: float):
-    """Chord pieces for an arc of length ``length`` that climbs ``dv`` (curved.glsl: chord_pieces)."""
+def chord_pieces(sh: Shape, lay: RingLayout, dv, ring, e_lo: float):
+    """Chord pieces for an arc that climbs ``dv`` (curved.glsl: chord_pieces): the fibers' centre lines
+    bend at most ``bend_v`` per unit v squared."""
     rho = lay.rho[ring] + lay.max_dr[ring]
-    r = rho + lay.fiber_radius + sh.displacement
     rate = 2 * math.pi * abs(sh.twist) * (2.0 if sh.twist_pattern == fibers.TWIST_RAMPED else 1.0)
     rate2 = 2.0 * 2 * math.pi * abs(sh.twist) if sh.twist_pattern == fibers.TWIST_RAMPED else 0.0
     f = 2 * math.pi * sh.curl_frequency
-    curl = sh.curl_amplitude * ((f + rate) ** 2 + rate2 if sh.curl_pattern == fibers.CURL_HELIX else f * f)
-    fz, fn = 2 * math.pi * sh.frizz_frequency_max, 2 * math.pi * sh.noise_frequency
-    curl = curl + sh.frizz_amplitude * fz * fz + sh.noise_amplitude * fn * fn    # fixed directions: as the wave
-    ell = rho * 4.0 * sh.ellipsoid ** 2 / np.maximum(e_lo, 0.25) ** 3
-    bend_v = r * (rate * rate + rate2) + ell + curl
-    bend_l = dv * dv * bend_v + 2.0 * rate * dv * length * sa
-    n = np.ceil(np.sqrt(bend_l / (0.8 * max(lay.fiber_radius, 1e-30))))
+    helix = sh.curl_pattern == fibers.CURL_HELIX
+    curl = sh.curl_amplitude * (f * f if helix else (f + rate) ** 2 + rate2)   # the wave turns with the twist
+    fz, fn = 2 * math.pi * sh.frizz_frequency_max + rate, 2 * math.pi * sh.noise_frequency + rate
+    curl = curl + sh.frizz_amplitude * (fz * fz + rate2) + sh.noise_amplitude * (fn * fn + rate2)
+    e = np.maximum(e_lo, 0.25)
+    e2 = 4.0 * sh.ellipsoid ** 2
+    bend_v = rho * (rate * rate + rate2 + e2 / e ** 3 + e2 * rate / e) + curl
+    n = np.ceil(np.sqrt(dv * dv * bend_v / (0.8 * max(lay.fiber_radius, 1e-30))))
     return np.clip(n, 1, MAX_SUB).astype(np.int64)
 
 
@@ -395,7 +372,8 @@ def segment_bands(sh: Shape, seg: Segment) -> tuple[float, float]:
 def piece_entry(sh, lay, seg, O, D, P0, P1, s_a, s_b, rest_x, rest_y, phase, v_end, taper: Taper | None = None,
                 ring: int = 0):
     """Entry parameter of each (ray, fiber) pair over the chord piece [s_a, s_b] (curved.glsl: piece_entry):
-    the ray seen from the fiber runs from P0.xy - c'(P0) to P1.xy - c'(P1) on a line. inf on a miss.
+    the fiber stands for the chord between its centres at the piece's ends (fiber_center_at), so the ray
+    seen from it runs from P0.xy - c(P0) to P1.xy - c(P1) on a line. inf on a miss.
     A tapered fiber's width is linear in the ray's unit-space height, so along the piece it is linear in s
     too: the cone of ``cone_interval`` about the moving centre. The fibers are ring ``ring``'s, at its
     radius (``lay.ring_radius``)."""
@@ -406,10 +384,10 @@ def piece_entry(sh, lay, seg, O, D, P0, P1, s_a, s_b, rest_x, rest_y, phase, v_e
         zc = np.minimum(zc, taper_apex(l0, l1))
     z0, z1 = _slab(O[..., 2], D[..., 2], -np.inf, zc)
     lo, hi = np.maximum(s_a, z0), np.minimum(s_b, z1)
-    c0x, c0y = ring_frame_center(sh, rest_x, rest_y, phase, P0)
-    c1x, c1y = ring_frame_center(sh, rest_x, rest_y, phase, P1)
-    q0x, q0y = P0[5] - c0x, P0[6] - c0y
-    q1x, q1y = P1[5] - c1x, P1[6] - c1y
+    c0x, c0y = fibers.fiber_center_at(sh, rest_x, rest_y, P0[0], ring, phase)
+    c1x, c1y = fibers.fiber_center_at(sh, rest_x, rest_y, P1[0], ring, phase)
+    q0x, q0y = P0[3] - c0x, P0[4] - c0y
+    q1x, q1y = P1[3] - c1x, P1[4] - c1y
     length = s_b - s_a
     safe = np.where(length > 0, length, 1.0)
     dqx = np.where(length > 0, (q1x - q0x) / safe, 0.0)
@@ -438,7 +416,6 @@ def shaped_nearest_segment(sh: Shape, lay: RingLayout, seg: Segment, ur: UnitRay
     e_lo, e_hi = segment_bands(sh, seg)
     o2, d2 = O[:, :2], D[:, :2]
     a2 = (d2 ** 2).sum(1)
-    sa = np.sqrt(a2)
     with np.errstate(divide="ignore", invalid="ignore"):
         s_mid = np.where(a2 > 0, -(o2 * d2).sum(1) / a2, s0)
     once_seen = np.zeros(n_rays, bool)
@@ -487,7 +464,7 @@ def shaped_nearest_segment(sh: Shape, lay: RingLayout, seg: Segment, ur: UnitRay
                         continue
                 Pa = ring_point(sh, seg, Or, Dr, a, i)
                 Pb = ring_point(sh, seg, Or, Dr, b, i)
-                n = chord_pieces(sh, lay, b - a, np.abs(Pb[0] - Pa[0]), sa[r], i, e_lo_arc)
+                n = chord_pieces(sh, lay, np.abs(Pb[0] - Pa[0]), i, e_lo_arc)
                 step = (b - a) / n
                 s = np.full((len(r), len(j)), np.inf)
                 P0, s_k = Pa, a

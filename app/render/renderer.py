@@ -670,6 +670,7 @@ class Renderer:
 
 
 EPS_ANGLE = 2e-5                        # glsl/common/epsilon.glsl
+EPS_TURNED_CHORD = 0.08                 # glsl/common/epsilon.glsl: a turned window's slack
 
 
 def ring_uniforms(lay: fibers.RingLayout) -> dict[str, np.ndarray]:
@@ -725,12 +726,13 @@ def candidate_caps(p: Params, scene: Scene) -> tuple[np.ndarray, int]:
 def _shaped_arc_passes(p: Params, scene: Scene) -> np.ndarray:
     """Curved fibers (glsl/fibers/shaped.glsl): per ring, the most loop passes one visit of an arc takes,
     all of the ring's fibers in the draw. The arc is cut into at most MAX_SUB chord pieces; a piece tests
-    the slots within the ring's reach of the angles its chord sweeps in the ring's frame, which turns with
-    the twist. Seen from the axis an arc of the untwisted path sweeps at most acos(inner / outer); the
-    twist adds what it turns over the arc, so all pieces together sweep at most that plus the twist over
-    the segment, and each piece adds its two reaches. A piece turns at most sqrt(0.8 r_f / r) with the
-    twist (the chord rule, curved.glsl), or a MAX_SUB-th of the segment's twist where the rule is capped;
-    a chord that sweeps more than 2.5 radians takes every fiber of the ring."""
+    the slots within the ring's reach of the angles its ray sweeps less the twist's range over the piece
+    (shaped.glsl: piece_window; its turning frame's window is at most 2 EPS_TURNED_CHORD wider). Seen from
+    the axis an arc of the ray sweeps at most acos(inner / outer), so all pieces together sweep at most that
+    plus the twist over the segment, and each piece adds its two reaches. A piece turns at most
+    sqrt(0.8 r_f / rho) with the twist (the chord rule, curved.glsl), or a MAX_SUB-th of the segment's
+    twist where the rule is capped, and its rest chords dip toward the axis by cos(turn / 2) (the reach's
+    disc); a window that spans more than 2.5 radians takes every fiber of the ring."""
     lay = fibers.ring_layout(p)
     sh = fibers.Shape.from_params(p)
     seg = scene.segments.astype(np.float64)
@@ -752,15 +754,16 @@ def _shaped_arc_passes(p: Params, scene: Scene) -> np.ndarray:
     ramped = sh.twist_pattern == fibers.TWIST_RAMPED
     dv = np.abs(v_hi - v_lo) * (2.0 * np.maximum(np.abs(v_lo), np.abs(v_hi)) if ramped else 1.0)
     twist = 2.0 * math.pi * abs(sh.twist) * float(dv.max()) * 1.001
-    r_chord = lay.rho + lay.max_dr + lay.fiber_radius + sh.displacement   # curved.glsl: chord_pieces
-    piece_turn = np.minimum(twist, np.maximum(np.sqrt(0.8 * max(lay.fiber_radius, 1e-30) / r_chord) * 1.001,
+    rho_chord = lay.rho + lay.max_dr                        # curved.glsl: chord_pieces
+    piece_turn = np.minimum(twist, np.maximum(np.sqrt(0.8 * max(lay.fiber_radius, 1e-30) / rho_chord) * 1.001,
                                               twist / MAX_SUB))
-    d_min = e_lo * (lay.rho - lay.max_dr)           # shaped.glsl: shaped_reach
+    chord_cos = np.where(piece_turn < 3.0, np.cos(np.minimum(piece_turn, 3.0) / 2.0), 0.0)
+    d_min = e_lo * (lay.rho - lay.max_dr) * chord_cos * (1.0 - 1e-3)   # shaped.glsl: shaped_reach
     r = lay.fiber_radius + sh.displacement
     with np.errstate(divide="ignore", invalid="ignore"):
         disc = np.where(d_min > r, np.arcsin(np.minimum(1.0, r / d_min)), math.pi)
     reach = lay.max_dphi + disc + EPS_ANGLE
-    per_piece = np.floor(2.0 * reach / lay.dphi).astype(np.int64) + 2
+    per_piece = np.floor(2.0 * (reach + EPS_TURNED_CHORD) / lay.dphi).astype(np.int64) + 2
     swept = np.floor((sweep + twist) / lay.dphi).astype(np.int64) + MAX_SUB * per_piece
     whole = sweep + piece_turn > 2.5 - 1e-3                 # shaped.glsl: the near-axis chord takes all
     tests = np.where(whole, MAX_SUB * lay.n, np.minimum(MAX_SUB * lay.n, swept))

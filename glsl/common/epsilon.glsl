@@ -26,6 +26,10 @@ const float EPS_CHORD = 1e-5;
 // Relative slack on exact mode's count of candidates past an improvement (shaped.glsl), so rounding of
 // 2 reach / dphi never drops the last one.
 const float EPS_AFTER = 1e-6;
+// The most a fiber's rest chord may stray from its rest angle, in the frame turned by the twist
+// interpolated along a chord piece, for the piece's window to use that frame (shaped.glsl: piece_window);
+// renderer.py's loop bound adds twice it to each piece's window.
+const float EPS_TURNED_CHORD = 0.08;
 // Guide-parameter slack of the shaped traversal's length screen (shaped.glsl): a fiber is passed over
 // on a chord piece only when it ends this much below the piece's lowest height, far more than the
 // rounding between the piece's heights and piece_entry's length cut.

@@ -59,13 +59,19 @@ float fiber_v_end(vec4 A, uint ringKey, int ring, int j, float lengthJitter) {
     return 1.0 - lengthJitter * placement_randoms(A, ringKey, ring, j).z;
 }
 
-// Where fiber j of a ring sits (centre c) and where it stops (vEnd), for a traversal that holds the
-// ring's uniforms A = uRingA[ring], B = uRingB[ring] and its ring key already.
-void fiber_center_keyed(vec4 A, vec4 B, uint ringKey, int ring, int j, out vec2 c, out float vEnd) {
+// Fiber j's rest centre turned by `turn` radians about the axis, for a traversal that holds the ring's
+// uniforms A = uRingA[ring], B = uRingB[ring] and its ring key already (the shaped traversal turns it by
+// the ring's twist in the one cosine and sine the placement takes anyway).
+vec2 fiber_rest_turned(vec4 A, vec4 B, uint ringKey, int ring, int j, float turn) {
     vec3 u = placement_randoms(A, ringKey, ring, j);
     float radius = A.x + (2.0 * u.x - 1.0) * B.x;
-    float angle = A.z + float(j) * A.y + (2.0 * u.y - 1.0) * B.y;
-    c = radius * vec2(cos(angle), sin(angle));
+    float angle = A.z + float(j) * A.y + (2.0 * u.y - 1.0) * B.y + turn;
+    return radius * vec2(cos(angle), sin(angle));
+}
+
+// Where fiber j of a ring sits (centre c) and where it stops (vEnd).
+void fiber_center_keyed(vec4 A, vec4 B, uint ringKey, int ring, int j, out vec2 c, out float vEnd) {
+    c = fiber_rest_turned(A, B, ringKey, ring, j, 0.0);
     vEnd = fiber_v_end(A, ringKey, ring, j, uLengthJitter);
 }
 

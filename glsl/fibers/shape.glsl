@@ -2,8 +2,8 @@
 //   vec2  fiber_center_at(vec2 rest, float v, int ring, float curlPhase)   unit-space centre at height v
 //   float shape_twist(float v, int ring)     rotation of the pattern about the axis, radians
 //   float shape_scale(float v)               ellipsoid: radial scale of every ring at height v
-//   RingPoint ring_point(Segment seg, UnitRay ur, float s, int ring)   the ray at s, seen in the ring's frame
-//   vec2  ring_frame_center(vec2 rest, CurlTurn curl, RingPoint P)      a fiber's centre in that frame
+//   RingPoint ring_point(Segment seg, UnitRay ur, float s, int ring)   the ray at s and ring's shape there
+//   vec2  piece_center(vec2 turned, vec2 curl, RingPoint P)   a fiber's centre at P, from its turned rest
 //   Frizz frizz_of(float curlPhase); vec2 frizz_offset(Frizz f, float v)  frizz and noise, ring's frame
 //   float shape_displacement()               the most the curl, frizz and noise move a fiber together
 // v is the guide parameter (0 root .. 1 tip). A fiber's centre at height v is its rest position scaled by
@@ -17,10 +17,11 @@
 // The ring's frame turns with the twist: R(-tau(v)) applied at every height. There a fiber's centre is
 //   c'(v) = E(v) rest + R(-tau(v)) curl(v)
 // whose angle about the axis stays within the curl's reach of the rest angle: a twisted fiber is straight
-// in it, and the ray, whose distance to the axis the rotation keeps, is the curve that turns.
+// in it. The traversal chooses its candidates in that frame (shaped.glsl) and tests them in the
+// container's, where the ray is straight (curved.glsl: piece_entry).
 // Twin: app/fibers/shape.py (fiber_center_at, shape_twist, shape_scale, frizz_randoms, frizz_offset,
 // Shape.displacement), app/reference.py (ring_point,
-// ring_frame_center). The pattern codes are app/fibers/shape.py's, injected (app.fibers.glsl_defines).
+// piece_center). The pattern codes are app/fibers/shape.py's, injected (app.fibers.glsl_defines).
 
 #include "geometry/container.glsl"
 #include "common/hash.glsl"
@@ -174,14 +175,15 @@ vec2 fiber_center_at(vec2 rest, float v, int ring, float curlPhase) {
     return c;
 }
 
-// The ray at parameter s as the ring's frame sees it: p = R(-tau) (O.xy + s D.xy), and what the fiber
-// centres need at that height (v, E(v), tau and its cosine and sine).
+// The ray at parameter s, p = O.xy + s D.xy in the container's frame, and what ring's fibers are at that
+// height: v, the ellipsoid's E(v) and the ring's twist tau (with its cosine and sine where the frizz turns
+// with it; the chord pieces take the twist between their ends in one sine and cosine instead).
 struct RingPoint {
     float s;
     float v;
     float e;
     float tau;
-    vec2 cs;        // (cos tau, sin tau)
+    vec2 cs;        // (cos tau, sin tau): SHAPE_FRIZZ only, else (1, 0)
     vec2 p;
 };
 
@@ -194,25 +196,24 @@ RingPoint ring_point(Segment seg, UnitRay ur, float s, int ring) {
 #else
     P.e = 1.0;
 #endif
-    vec2 q = ur.O.xy + s * ur.D.xy;
+    P.p = ur.O.xy + s * ur.D.xy;
 #if SHAPE_TWIST
     P.tau = shape_twist(P.v, ring);
-    P.cs = vec2(cos(P.tau), sin(P.tau));
-    P.p = vec2(P.cs.x * q.x + P.cs.y * q.y, P.cs.x * q.y - P.cs.y * q.x);
 #else
-    P.tau = 0.0;                // no twist: the ring's frame is the container's
+    P.tau = 0.0;
+#endif
+#if SHAPE_TWIST && SHAPE_FRIZZ
+    P.cs = vec2(cos(P.tau), sin(P.tau));
+#else
     P.cs = vec2(1.0, 0.0);
-    P.p = q;
 #endif
     return P;
 }
 
-// c'(v) at the height of P. The helix turns at 2 pi F less the twist's rate in this frame; the wave sways
-// along the ring, which in this frame is a fixed direction (where the fiber is off the axis).
-// Curl turn: the curl's angle at P is (a - tau, a) with a = 2 pi (F v + phase); from one end of a chord
-// piece to the other both advance by the same amount for every fiber (ring_curl_step), so a piece's far
-// end takes its curl from the near end's by a rotation instead of another sine and cosine.
-struct CurlTurn { vec2 h; vec2 w; };    // (cos, sin) of a - tau (helix) and of a (wave)
+// The curl's angle at P is a = 2 pi (F v + phase) for the helix and the wave alike (the container's
+// frame); from one end of a chord piece to the other it advances by the same amount for every fiber
+// (ring_curl_step), so a piece's far end takes its curl from the near end's by a rotation instead of
+// another sine and cosine.
 
 // (cos, sin) of 2 pi x for x in turns, from one reduction shared by two short polynomials: a curled
 // fiber's test takes a pair per candidate, and llvmpipe's cos and sin reduce the angle each on its own
@@ -232,47 +233,39 @@ vec2 turn_cos_sin(float x) {
     return (k & 2) == 0 ? a : -a;
 }
 
-CurlTurn curl_turn(float curlPhase, RingPoint P) {
-    float a = sCurlFrequency * P.v + curlPhase;         // turns
-    CurlTurn c;
-    c.h = turn_cos_sin(a - P.tau * (1.0 / TWO_PI));
-    c.w = turn_cos_sin(a);
-#if SHAPE_CURL == 1
-    c.w = vec2(1.0, 0.0);
-#elif SHAPE_CURL == 2
-    c.h = vec2(1.0, 0.0);
-#endif
-    return c;
+// (cos, sin) of the curl's angle a at P.
+vec2 curl_turn(float curlPhase, RingPoint P) {
+    return turn_cos_sin(sCurlFrequency * P.v + curlPhase);     // in turns
 }
 
-// (cos, sin) of how far the helix's and the wave's angles advance from P0 to P1: (helix, wave) as a vec4.
-vec4 ring_curl_step(RingPoint P0, RingPoint P1) {
+// (cos, sin) of how far the curl's angle advances from P0 to P1.
+vec2 ring_curl_step(RingPoint P0, RingPoint P1) {
     float dw = TWO_PI * sCurlFrequency * (P1.v - P0.v);
-    float dh = dw - (P1.tau - P0.tau);
-    return vec4(cos(dh), sin(dh), cos(dw), sin(dw));
+    return vec2(cos(dw), sin(dw));
 }
 
-CurlTurn curl_advance(CurlTurn c, vec4 step) {
-    CurlTurn n;
-    n.h = vec2(c.h.x * step.x - c.h.y * step.y, c.h.y * step.x + c.h.x * step.y);
-    n.w = vec2(c.w.x * step.z - c.w.y * step.w, c.w.y * step.z + c.w.x * step.w);
-    return n;
+vec2 curl_advance(vec2 c, vec2 step) {
+    return vec2(c.x * step.x - c.y * step.y, c.y * step.x + c.x * step.y);
 }
 
-vec2 ring_frame_center(vec2 rest, CurlTurn curl, RingPoint P) {
-    vec2 c = P.e * rest;
+// fiber_center_at at the height of P, in the container's frame, with the fiber's rest position already
+// turned by the ring's twist there (turned = R(tau) rest) and the curl's (cos, sin) there. The wave sways
+// along the ring: across the turned rest direction (where the fiber is off the axis); the frizz is
+// piece_entry's.
+vec2 piece_center(vec2 turned, vec2 curl, RingPoint P) {
+    vec2 c = P.e * turned;
 #if SHAPE_CURL != 0
 #if SHAPE_CURL != 1
-    float r2 = dot(rest, rest);
-    vec2 along = r2 > 0.0 && P.e > 0.0 ? vec2(-rest.y, rest.x) * inversesqrt(r2) : vec2(P.cs.x, -P.cs.y);
-    vec2 wave = curl.w.y * along;
+    float r2 = dot(turned, turned);
+    vec2 along = r2 > 0.0 && P.e > 0.0 ? vec2(-turned.y, turned.x) * inversesqrt(r2) : vec2(1.0, 0.0);
+    vec2 wave = curl.y * along;
 #endif
 #if SHAPE_CURL == 1
-    c += sCurlAmplitude * curl.h;
+    c += sCurlAmplitude * curl;
 #elif SHAPE_CURL == 2
     c += sCurlAmplitude * wave;
 #else
-    c += sCurlAmplitude * (sCurlPattern == CURL_HELIX ? curl.h : wave);
+    c += sCurlAmplitude * (sCurlPattern == CURL_HELIX ? curl : wave);
 #endif
 #endif
     return c;

@@ -8,13 +8,13 @@
 // the bands crossed twice (outer to inner), the first halves of the bands crossed once (split at the
 // ray's closest approach to the axis), their second halves (inner to outer, all starting at the closest
 // approach), then the backs (inner to outer). One loop visits them all, as traverse_straight's does.
-// An arc is seen in the frame that turns with its ring's twist (shape.glsl): there the fibers do not
-// turn, and the ray's distance to the axis is what it was, so the bands and arcs are those of the
-// untwisted ring. The arc is cut into chord pieces (curved.glsl: chord_pieces, as many as the ray's climb
-// and the shape's bend need); a piece is a straight stretch from the ray's point at its start to the one
-// at its end, which sweeps the angles between them as seen from the axis; only the fibers whose slot,
-// widened by the ring's reach (jitter, the displacement and the fiber's disc), meets those angles are
-// tested on it. The twist never widens a window.
+// The bands are the untwisted ring's (the twist keeps every distance to the axis). The arc is cut into
+// chord pieces (curved.glsl: chord_pieces, as many as the fibers' bend over the ray's climb needs); on a
+// piece each fiber is the chord between its centres at the piece's ends and the ray is straight (the
+// container's frame: piece_entry), and only the fibers whose slot, widened by the ring's reach (jitter,
+// the displacement and the fiber's disc), meets the angles the ray sweeps seen in the frame that turns
+// with the ring's twist are tested on it (the piece's window: piece_window). The twist widens a window
+// only on a piece where its rate meets the ray's own sweep, by at most its turn over the piece.
 // exact: a piece's candidates up to two reaches past its latest improvement are tested, and the pieces
 // (and arcs) stop once the next one starts beyond the nearest hit so far. fast: the first hit wins. brute: every fiber of the draw's share on every
 // piece of every arc.
@@ -76,33 +76,88 @@ vec2 ring_band(int i, Bands b) {
     return vec2(max(0.0, b.eLo * (rho - dr) - grow), b.eHi * (rho + dr) + grow);
 }
 
-// Angular reach of ring i's fibers about their slots in the ring's frame: the jitter, then the disc of
-// radius r = fiber radius + displacement about the scaled rest position Q, seen from the axis. A point
-// P within r of Q is within asin(r / |Q|) of Q's direction, and also within asin(r / |P|): Q lies on
-// the half-line through the axis at its angle, and P is |P| sin(angle) from that line. So a piece whose
-// chord keeps away from the axis (rayMin: its nearest distance) narrows the reach of the inner rings,
-// where the disc alone would take the whole ring.
-float shaped_disc(int i, Bands b, float rayMin) {
-    float dMin = max(b.eLo * (uRingA[i].x - uRingB[i].x), rayMin);
+// Angular reach of ring i's fibers about their slots: the jitter, then the disc of radius r = fiber
+// radius + displacement about Q, the point of the fiber's rest chord (between its scaled, turned rest
+// positions at the piece's ends), seen from the axis. A point P within r of Q is within asin(r / |Q|) of
+// Q's direction, and also within asin(r / |P|): Q lies on the half-line through the axis at its angle,
+// and P is |P| sin(angle) from that line. |Q| >= eLo (rho - maxDr) cos(dTau / 2), dTau the twist over
+// the piece (chordCos). So a piece whose ray keeps away from the axis (rayMin: its nearest distance)
+// narrows the reach of the inner rings, where the disc alone would take the whole ring.
+float shaped_disc(int i, Bands b, float rayMin, float chordCos) {
+    float dMin = max(b.eLo * (uRingA[i].x - uRingB[i].x) * chordCos, rayMin);
     float r = sFiberRadius + shape_displacement();
     return dMin > r ? asin(r / dMin) : 3.14159265359;
 }
 
-float shaped_reach(int i, Bands b, float rayMin) {
-    return uRingB[i].y + shaped_disc(i, b, rayMin) + EPS_ANGLE;
+float shaped_reach(int i, Bands b, float rayMin, float chordCos) {
+    return uRingB[i].y + shaped_disc(i, b, rayMin, chordCos) + EPS_ANGLE;
 }
 
 // (cos, sin) of the disc plus EPS_ANGLE, the point stop's turn (traverse_shaped), without a sine or a
 // cosine: the disc is asin(x), so its cosine is sqrt(1 - x^2), and EPS_ANGLE is added by a constant
 // rotation. Rounding moves the angle by ~1e-7, inside the EPS_ANGLE it has to spare. A disc of pi (the
 // chord reaches the fibers' axis side) comes out as x = 1: the stop is off there anyway (reach > 1.5).
-vec2 shaped_turn(int i, Bands b, float rayMin) {
-    float dMin = max(b.eLo * (uRingA[i].x - uRingB[i].x), rayMin);
+vec2 shaped_turn(int i, Bands b, float rayMin, float chordCos) {
+    float dMin = max(b.eLo * (uRingA[i].x - uRingB[i].x) * chordCos, rayMin);
     float r = sFiberRadius + shape_displacement();
     float x = dMin > r ? r / dMin : 1.0;                // shaped_disc's quotient: one division for both
     vec2 d = vec2(sqrt(max(0.0, (1.0 - x) * (1.0 + x))), x);
     const vec2 e = vec2(cos(EPS_ANGLE), sin(EPS_ANGLE));
     return vec2(d.x * e.x - d.y * e.y, d.y * e.x + d.x * e.y);
+}
+
+// The slots a chord piece's ray can meet, as angles in the ring's turning frame (slot j at rot + j dphi).
+// A fiber's rest chord on the piece runs between its rest position turned by tau0 and by tau1 (the
+// ring's twist at the piece's ends), so in the container's frame it lies in the wedge of its rest angle
+// plus [min(tau0, tau1), max(tau0, tau1)]; a hit needs the ray's angle theta within the reach of that
+// wedge. theta runs one way along the straight ray: the box window is theta's range less the twist's,
+// scanned in theta's order. Tighter where it holds: in the frame turned by the twist interpolated along
+// the piece, tau0 + (s - s0) dTau / L, the rest chord keeps its rest angle to within epsF (the chord of
+// two points dTau apart strays from the turning angle by at most 0.0161 |dTau|^3 of its radius, and the
+// scale's change E1 - E0 adds |E1 - E0| |dTau| / 4; over its distance from the axis, >= eMin
+// cos(dTau / 2)), and the ray's angle there, psi = theta - tau, runs one way unless the twist's rate
+// meets theta's, |O.xy x D.xy| / |p|^2 (one sign over |p|^2 in [rayMin^2, the ends']): then psi's range
+// widened by the reach and epsF is the window, scanned in psi's order (epsF kept below EPS_TURNED_CHORD,
+// so the window is at most 2 EPS_TURNED_CHORD wider than the box: renderer.py's loop bound).
+struct PieceWindow {
+    float start;        // where the scan starts (before the reach), and the signed span it runs over
+    float span;
+    int dir;            // the scan's order: +1 or -1
+    float reach;        // added on both sides
+    float after;        // exact: how far past an improvement a nearer hit's slot can lie
+    bool thetaOrder;    // the scan runs in theta's order (the point stop needs it: shaped_candidate)
+};
+
+PieceWindow piece_window(float thA, float spanX, RingPoint P0, RingPoint P1, float cr, float rayMin,
+                         float reach, float chordCos) {
+    float dTau = P1.tau - P0.tau;
+    float ad = abs(dTau);
+    int dirX = spanX >= 0.0 ? 1 : -1;
+    PieceWindow w;
+    w.start = thA - (dirX > 0 ? max(P0.tau, P1.tau) : min(P0.tau, P1.tau));
+    w.span = spanX + float(dirX) * ad;
+    w.dir = dirX;
+    w.reach = reach;
+    w.after = 2.0 * reach + ad;
+    w.thetaOrder = true;
+#if SHAPE_TWIST
+    float L = P1.s - P0.s;
+    float dmax2 = max(dot(P0.p, P0.p), dot(P1.p, P1.p));
+    bool oneWay = ad <= 1.5 && (cr * L - dTau * dmax2) * (cr * L - dTau * rayMin * rayMin) > 0.0;
+    float eMin = min(P0.e, P1.e), eMax = max(P0.e, P1.e);
+    float x = (eMax * 0.02 * ad * ad * ad + (eMax - eMin) * 0.25 * ad) / max(eMin * chordCos, EPS_DIVISOR);
+    float epsF = 1.5708 * x;                        // asin(x) <= x pi / 2; <= EPS_TURNED_CHORD
+    float spanT = spanX - dTau;
+    oneWay = oneWay && epsF <= EPS_TURNED_CHORD;
+    int dirT = spanT >= 0.0 ? 1 : -1;
+    w.start = oneWay ? thA - P0.tau : w.start;
+    w.span = oneWay ? spanT : w.span;
+    w.dir = oneWay ? dirT : w.dir;
+    w.reach = oneWay ? reach + epsF : w.reach;
+    w.after = oneWay ? 2.0 * (reach + epsF) : w.after;
+    w.thetaOrder = !oneWay || dirT == dirX;
+#endif
+    return w;
 }
 
 // The distance from the axis to the chord from a to b.
@@ -126,14 +181,17 @@ float shaped_curl_phase(uint ringKey, int ring, int j) {
 struct ShapedPiece {
     RingPoint P0, P1;
     float invLen;       // 1 / (P1.s - P0.s), 0 for a piece of no length
-    vec4 curlStep;      // ring_curl_step(P0, P1)
+    vec2 curlStep;      // ring_curl_step(P0, P1)
     vec4 A, B;          // the ring's uniforms
     uint ringKey;
     int ring;
     int after;          // exact: candidates past an improvement that can still be nearer
     int dir;            // +1 or -1: the order of the slots along the sweep
     vec2 turn;          // (cos, sin) that turns a rest direction back by the disc, against dir
-    bool angled;        // the point stop may compare angles (they lie within half a turn)
+    bool angled;        // the point stop may compare angles (they lie within half a turn, theta's order)
+    float tau0;         // the ring's twist at P0
+    vec2 dTau;          // (cos, sin) of the twist from P0 to P1
+    bool backAtEnd;     // the point stop turns the rest position by the twist at P1 (else at P0)
 };
 struct ShapedScan {
     FiberHit best;
@@ -145,13 +203,13 @@ struct ShapedScan {
 // Candidate t (fiber j) of a piece: its test, the best hit, and exact mode's and fast mode's stops.
 void shaped_candidate(Segment seg, FiberRay fri, ShapedPiece pc, int t, int j, inout ShapedScan sc) {
     gTests++;
-    vec2 rest;
-    float vEndUnused;
-    fiber_center_keyed(pc.A, pc.B, pc.ringKey, pc.ring, j, rest, vEndUnused);
+    // the rest position turned by the twist at both ends: at P0 in the placement's own cosine and sine
+    vec2 turned0 = fiber_rest_turned(pc.A, pc.B, pc.ringKey, pc.ring, j, pc.tau0);
+    vec2 turned1 = vec2(pc.dTau.x * turned0.x - pc.dTau.y * turned0.y, pc.dTau.y * turned0.x + pc.dTau.x * turned0.y);
     float vEnd = fiber_v_end(pc.A, pc.ringKey, pc.ring, j, sLengthJitter);
     float phase = shaped_curl_phase(pc.ringKey, pc.ring, j);
     int kind;
-    float s = piece_entry(seg, fri, pc.P0, pc.P1, pc.invLen, pc.curlStep, rest, phase, vEnd, kind);
+    float s = piece_entry(seg, fri, pc.P0, pc.P1, pc.invLen, pc.curlStep, turned0, turned1, phase, vEnd, kind);
     s = pc.ring == gSkipRing && j == gSkipFiber ? INF : s;
     bool better = beats(s, pc.ring, j, sc.best.s, sc.best.ring, sc.best.fiber);
     sc.best.s = better ? s : sc.best.s;
@@ -161,14 +219,16 @@ void shaped_candidate(Segment seg, FiberRay fri, ShapedPiece pc, int t, int j, i
     sc.found = sc.found || better;
     sc.end = !better ? sc.end : (gMode == 0 ? t : min(sc.end, t + 1 + pc.after));   // fast: the first wins
 #if SHAPED_POINT_STOP
-    // exact: a hit nearer than the best so far lies on this chord before the best's point H (the piece's
-    // end while the best lies beyond it). A fiber is hit only where the chord comes within the disc of
-    // its rest position, so where its rest direction, turned back by the disc, lies past H (seen from
-    // the axis, along the sweep), it and every later slot (the jitter keeps the rest directions in slot
-    // order) are hit after H, if at all: the scan stops there. Valid while the angles compared stay
-    // within half a turn of each other.
+    // exact: a hit nearer than the best so far lies on this piece's ray before the best's point H (the
+    // piece's end while the best lies beyond it). A fiber is hit only where the ray comes within the disc
+    // of its rest chord, which lies in the wedge of its rest position turned by the twist at the piece's
+    // ends, so where the wedge's first edge along the sweep (the turn at P0 or at P1), turned back by the
+    // disc, lies past H (seen from the axis, in theta's order), it and every later slot (the jitter keeps
+    // the rest directions in slot order) are hit after H, if at all: the scan stops there. Valid while the
+    // angles compared stay within half a turn of each other.
     sc.H = better ? pc.P0.p + ((s - pc.P0.s) * pc.invLen) * (pc.P1.p - pc.P0.p) : sc.H;
-    vec2 back = vec2(pc.turn.x * rest.x - pc.turn.y * rest.y, pc.turn.y * rest.x + pc.turn.x * rest.y);
+    vec2 edge = pc.backAtEnd ? turned1 : turned0;
+    vec2 back = vec2(pc.turn.x * edge.x - pc.turn.y * edge.y, pc.turn.y * edge.x + pc.turn.x * edge.y);
     bool beyond = pc.angled && float(pc.dir) * (sc.H.x * back.y - sc.H.y * back.x) > 0.0;
     sc.end = beyond ? min(sc.end, t + 1) : sc.end;
 #endif
@@ -246,8 +306,8 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
         bool open = inside && share.x < share.y;            // else none of this ring's fibers is in this draw
         gPieces += open ? 1 : 0;
         RingPoint P0 = ring_point(seg, ur, a, i);
-        RingPoint Pb = ring_point(seg, ur, b, i);
-        int pieces = open ? chord_pieces(b - a, abs(Pb.v - P0.v), sa, i, arcBands.eLo) : 0;
+        float dvArc = abs(unit_to_v(seg, ur.O.z + b * ur.D.z) - P0.v);
+        int pieces = open ? chord_pieces(dvArc, i, arcBands.eLo) : 0;
         float step = (b - a) / float(max(pieces, 1));
         ShapedPiece pc;
         pc.A = uRingA[i];
@@ -258,8 +318,9 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
         int n = uRingN[i].x;
         sc.found = false;
         pc.P0 = P0;
-        // the angle of the chord's start seen from the axis: each piece's end is the next one's start
+        // the angle of the piece's start seen from the axis: each piece's end is the next one's start
         float thA = atan(P0.p.y, P0.p.x);
+        float cr = o2.x * d2.y - o2.y * d2.x;      // theta's rate along the ray is cr / |p|^2
         for (int k = 0; k < pieces; k++) {
             gIters++;
             // the last piece ends at b itself: one ring_point with its parameter chosen (a select of two
@@ -269,34 +330,46 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
 #if SHAPE_CURL != 0
             pc.curlStep = ring_curl_step(pc.P0, pc.P1);
 #else
-            pc.curlStep = vec4(0.0);
+            pc.curlStep = vec2(1.0, 0.0);
 #endif
-            // the candidates: slots within the reach of the angles the piece sweeps (a chord never
-            // sweeps half a turn or more: past 2.5 radians it passes so near the axis that all are taken)
+            float dTau = pc.P1.tau - pc.P0.tau;
+            pc.tau0 = pc.P0.tau;
+            pc.dTau = vec2(cos(dTau), sin(dTau));
+            // cos(dTau / 2), which bounds how near the axis a rest chord dips (0 past half a turn)
+            float chordCos = abs(dTau) < 3.0 ? sqrt(max(0.0, 0.5 + 0.5 * pc.dTau.x)) * (1.0 - EPS_CHORD) : 0.0;
+            // the candidates: slots within the reach of the angles the piece sweeps (a straight ray never
+            // sweeps half a turn or more: past 2.5 radians with the twist, or so near the axis that the
+            // reach is the whole ring, all are taken)
             float rayMin = chord_distance(pc.P0.p, pc.P1.p) * (1.0 - EPS_CHORD);
-            float reach = shaped_reach(i, arcBands, rayMin);
-            // exact: a hit nearer than one on candidate t lies before it on the chord, so its fiber's slot
-            // is at most two reaches further on (traverse_straight's rule, with the piece's reach)
-            pc.after = gMode == 1 ? int(floor(2.0 * reach * pc.B.z * (1.0 + EPS_AFTER))) + 1 : n;
+            float reach = shaped_reach(i, arcBands, rayMin, chordCos);
             // (a point on the axis has no angle: a piece that starts there takes its end's, one that ends
             // there its start's)
             thA = dot(pc.P0.p, pc.P0.p) > 0.0 ? thA : atan(pc.P1.p.y, pc.P1.p.x);
             float thB = dot(pc.P1.p, pc.P1.p) > 0.0 ? atan(pc.P1.p.y, pc.P1.p.x) : thA;
-            float span = wrap_pi(thB - thA);
-            int dir = gMode == 2 || span >= 0.0 ? 1 : -1;
+            float spanX = wrap_pi(thB - thA);
+            PieceWindow win = piece_window(thA, spanX, pc.P0, pc.P1, cr, rayMin, reach, chordCos);
+            float span = win.span;
+            int dir = gMode == 2 ? 1 : win.dir;
             pc.dir = dir;
-            float first = (thA - float(dir) * reach - pc.A.z) * pc.B.z;
-            float last = (thA + span + float(dir) * reach - pc.A.z) * pc.B.z;
+            // exact: a hit nearer than one on candidate t lies before it on the ray, so its fiber's slot
+            // is at most win.after further on (traverse_straight's rule: two reaches, and the twist's turn
+            // where the window is the box)
+            pc.after = gMode == 1 ? int(floor(win.after * pc.B.z * (1.0 + EPS_AFTER))) + 1 : n;
+            float first = (win.start - float(dir) * win.reach - pc.A.z) * pc.B.z;
+            float last = (win.start + span + float(dir) * win.reach - pc.A.z) * pc.B.z;
 #if SHAPED_POINT_STOP
-            // exact: the best's point on this chord (shaped_candidate says what stops there)
+            // exact: the best's point on this piece (shaped_candidate says what stops there), the wedge's
+            // first edge along the scan (the lower twist going up, the higher going down)
             float sH = clamp(sc.best.s, pc.P0.s, pc.P1.s);
             sc.H = sH >= pc.P1.s ? pc.P1.p : pc.P0.p + ((sH - pc.P0.s) * pc.invLen) * (pc.P1.p - pc.P0.p);
-            pc.angled = gMode == 1 && abs(span) + 2.0 * reach < 3.0;
-            vec2 turn = shaped_turn(i, arcBands, rayMin);
+            pc.angled = gMode == 1 && win.thetaOrder && abs(span) + 2.0 * win.reach < 3.0;
+            pc.backAtEnd = (dir > 0) == (dTau < 0.0);
+            vec2 turn = shaped_turn(i, arcBands, rayMin, chordCos);
             pc.turn = vec2(turn.x, -float(dir) * turn.y);
 #else
             sc.H = vec2(0.0);
             pc.angled = false;
+            pc.backAtEnd = false;
             pc.turn = vec2(1.0, 0.0);
 #endif
             int j0 = dir > 0 ? int(ceil(first)) : int(floor(first));

@@ -96,7 +96,7 @@ def test_the_chord_rule_takes_more_pieces_for_faster_noise():
     counts = []
     for f in (2.0, 8.0, 32.0):
         sh = fibers.Shape.from_params(Params({**base, "shape.noise_frequency": f}))
-        counts.append(int(reference.chord_pieces(sh, lay, 1.0, 0.02, 0.1, 0, 1.0)))
+        counts.append(int(reference.chord_pieces(sh, lay, 0.02, 0, 1.0)))
     assert counts[0] < counts[1] < counts[2] <= fibers.MAX_SUB
 
 

@@ -62,6 +62,53 @@ def test_the_stop_at_the_best_point_keeps_exact_equal_to_brute(renderer, shape, 
     assert exact.cost[..., 3].max() < 65_535
 
 
+# A chord piece's window (shaped.glsl: piece_window) is taken in the frame turned by the twist interpolated
+# along the piece where the ray's angle there runs one way, else as the ray's sweep less the twist's range;
+# the point stop looks at the edge of each fiber's wedge. Dense, jittered rings, twisted in each pattern,
+# with the ellipsoid (its scale changes along a piece) and a curl, seen nearly across, at a slant and
+# nearly along the fibers (long pieces that turn by much).
+TWISTED_WINDOW = {**POINT_STOP, "shape.ellipsoid": 0.8, "scene.segments": 3}
+
+
+@pytest.mark.parametrize("shape", [{"shape.twist": 1.5},
+                                   {"shape.twist": -2.0, "shape.twist_pattern": "ramped",
+                                    "shape.curl_amplitude": 0.3, "shape.curl_frequency": 5.0},
+                                   {"shape.twist": 3.0, "shape.twist_pattern": "alternating",
+                                    "shape.curl_amplitude": 0.2, "shape.curl_frequency": 3.0,
+                                    "shape.curl_pattern": "wave"}],
+                         ids=["uniform", "ramped-curl", "alternating-wave"])
+@pytest.mark.parametrize("elevation", [5.0, 35.0, 80.0])
+def test_twisted_piece_windows_keep_exact_equal_to_brute(renderer, shape, elevation):
+    p, scene, cam = setup(renderer, {**TWISTED_WINDOW, **shape}, {"elevation": elevation})
+    exact = renderer.render(p, cam, SIZE, outputs=("ids", "cost"), mode="exact")
+    brute = renderer.render(p, cam, SIZE, outputs=("ids",), mode="brute")
+    assert exact.hit.sum() > 300
+    differ = np.any(exact.ids[..., :3] != brute.ids[..., :3], -1).sum()
+    assert differ == 0, f"elevation {elevation}: {differ} pixels differ"
+    assert exact.cost[..., 3].max() < 65_535
+
+
+def test_a_rest_chord_keeps_its_angle_in_the_interpolated_twist_frame():
+    # piece_window's epsF: the chord from E0 e^{i tau0} to E1 e^{i tau1}, at parameter t and turned back by
+    # tau0 + t dTau, points within (pi / 2) x of the rest angle, x = (0.02 |dTau|^3 eMax + |E1 - E0| |dTau|
+    # / 4) / (eMin cos(dTau / 2)), for |dTau| <= 1.5 and x small (the shader asks epsF <= 0.08)
+    rng = np.random.default_rng(7)
+    d = rng.uniform(-1.5, 1.5, 20000)
+    e0, e1 = rng.uniform(0.25, 1.0, (2, 20000))
+    e1 = np.where(rng.random(20000) < 0.5, e0, e1)      # half without the ellipsoid
+    t = np.linspace(0.0, 1.0, 101)[:, None]
+    w = (1 - t) * e0 * np.exp(-1j * t * d) + t * e1 * np.exp(1j * (1 - t) * d)
+    angle = np.abs(np.angle(w)).max(0)
+    x = (0.02 * np.abs(d) ** 3 * np.maximum(e0, e1) + np.abs(e1 - e0) * 0.25 * np.abs(d)) / (
+        np.minimum(e0, e1) * np.cos(d / 2))
+    small = 1.5708 * x <= 0.08
+    assert small.sum() > 5000
+    assert np.all(angle[small] <= 1.5708 * x[small] + 1e-12)
+    # and the bound is not slack by orders of magnitude: the twist's term alone is met within 2x
+    same = small & (e0 == e1) & (np.abs(d) > 0.5)
+    assert np.all(angle[same] <= 1.5708 * x[same]) and np.max(angle[same] / (1.5708 * x[same])) > 0.3
+
+
 # The length screen (shaped.glsl: SHAPED_SCREEN) passes over fibers that end below a whole chord piece:
 # long length jitter, curled fibers, seen across the tips and from above them.
 SCREEN = {**POINT_STOP, "fibers.length_jitter": 0.7, "shape.curl_amplitude": 0.4, "shape.curl_frequency": 6.0}
