@@ -50,6 +50,9 @@
 #ifndef SHAPED_SCREEN
 #define SHAPED_SCREEN (SHAPE_CURL != 0 || SHAPE_FRIZZ)   // a define of 0 turns it off (the tests compare)
 #endif
+#ifndef SHAPED_TURNED_WINDOW
+#define SHAPED_TURNED_WINDOW 1      // 0: every piece's window the box (piece_window; the tests compare)
+#endif
 
 // The layout's uniforms the loops below read, copied once per invocation (shape.glsl says why): the
 // seed and the fiber ranges are never negative, so abs leaves them as they are.
@@ -140,7 +143,7 @@ PieceWindow piece_window(float thA, float spanX, RingPoint P0, RingPoint P1, flo
     w.reach = reach;
     w.after = 2.0 * reach + ad;
     w.thetaOrder = true;
-#if SHAPE_TWIST
+#if SHAPE_TWIST && SHAPED_TURNED_WINDOW
     float L = P1.s - P0.s;
     float dmax2 = max(dot(P0.p, P0.p), dot(P1.p, P1.p));
     bool oneWay = ad <= 1.5 && (cr * L - dTau * dmax2) * (cr * L - dTau * rayMin * rayMin) > 0.0;
