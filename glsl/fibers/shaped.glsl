@@ -288,6 +288,7 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
         // visited if its ring is not above the best's (the arcs after it may still be lower rings)
         // (sKnown: a nearer hit is known elsewhere, traverse.glsl: limit_traversal)
         if (inside && (a > ur.sKnown || (gMode != 2 && a > sc.best.s))) break;
+        if (applies && sA > ur.s1) break;           // nor can any later arc reach the stretch
         inside = inside && (gMode == 2 || a < sc.best.s || i <= sc.best.ring);
         Bands arcBands = bands;
 #if SHAPE_ELLIPSOID
