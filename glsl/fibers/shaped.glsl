@@ -192,7 +192,6 @@ struct ShapedPiece {
     int dir;            // +1 or -1: the order of the slots along the sweep
     vec2 turn;          // (cos, sin) that turns a rest direction back by the disc, against dir
     bool angled;        // the point stop may compare angles (they lie within half a turn, theta's order)
-    float tau0;         // the ring's twist at P0
     vec2 dTau;          // (cos, sin) of the twist from P0 to P1
     bool backAtEnd;     // the point stop turns the rest position by the twist at P1 (else at P0)
 };
@@ -207,7 +206,7 @@ struct ShapedScan {
 void shaped_candidate(Segment seg, FiberRay fri, ShapedPiece pc, int t, int j, inout ShapedScan sc) {
     gTests++;
     // the rest position turned by the twist at both ends: at P0 in the placement's own cosine and sine
-    vec2 turned0 = fiber_rest_turned(pc.A, pc.B, pc.ringKey, pc.ring, j, pc.tau0);
+    vec2 turned0 = fiber_rest_turned(pc.A, pc.B, pc.ringKey, pc.ring, j, pc.P0.tau);
     vec2 turned1 = vec2(pc.dTau.x * turned0.x - pc.dTau.y * turned0.y, pc.dTau.y * turned0.x + pc.dTau.x * turned0.y);
     float vEnd = fiber_v_end(pc.A, pc.ringKey, pc.ring, j, sLengthJitter);
     float phase = shaped_curl_phase(pc.ringKey, pc.ring, j);
@@ -249,7 +248,8 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
     float sMid = a2 > 0.0 ? -dot(o2, d2) / a2 : ur.s0;
     // The bands the path enters (a prefix of the rings: outer radii fall with the ring index) and those
     // of them it crosses twice (a prefix again): a circle of radius r is met when |o x d| <= |d| r.
-    float crs = abs(o2.x * d2.y - o2.y * d2.x);
+    float cr = o2.x * d2.y - o2.y * d2.x;          // the ray's angle about the axis turns at cr / |p|^2
+    float crs = abs(cr);
     int K = uRings;
     int nReached = 0;
     int nTwice = 0;
@@ -324,7 +324,6 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
         pc.P0 = P0;
         // the angle of the piece's start seen from the axis: each piece's end is the next one's start
         float thA = atan(P0.p.y, P0.p.x);
-        float cr = o2.x * d2.y - o2.y * d2.x;      // theta's rate along the ray is cr / |p|^2
         for (int k = 0; k < pieces; k++) {
             gIters++;
             // the last piece ends at b itself: one ring_point with its parameter chosen (a select of two
@@ -337,7 +336,6 @@ FiberHit traverse_shaped(Segment seg, UnitRay ur) {
             pc.curlStep = vec2(1.0, 0.0);
 #endif
             float dTau = pc.P1.tau - pc.P0.tau;
-            pc.tau0 = pc.P0.tau;
             pc.dTau = vec2(cos(dTau), sin(dTau));
             // cos(dTau / 2), which bounds how near the axis a rest chord dips (0 past half a turn)
             float chordCos = abs(dTau) < 3.0 ? sqrt(max(0.0, 0.5 + 0.5 * pc.dTau.x)) * (1.0 - EPS_CHORD) : 0.0;
