@@ -336,11 +336,12 @@ def unit_to_v(seg: Segment, z_unit):
     return seg.v0 + (seg.v1 - seg.v0) * z / seg.h
 
 
-def ring_point(sh: Shape, seg: Segment, O, D, s, ring):
-    """The ray at s and ring ``ring``'s shape at that height: (v, E(v), tau, x, y), (x, y) = O.xy + s D.xy
-    in the container's frame."""
+def ring_point(seg: Segment, O, D, s):
+    """The ray at s: (v, x, y), (x, y) = O.xy + s D.xy in the container's frame. (The GLSL's also carries
+    the ring's scale and twist there, which it turns the fibers by; piece_entry here takes them from
+    fiber_center_at.)"""
     v = unit_to_v(seg, O[..., 2] + s * D[..., 2])
-    return v, shape_scale(sh, v), shape_twist(sh, v, ring), O[..., 0] + s * D[..., 0], O[..., 1] + s * D[..., 1]
+    return v, O[..., 0] + s * D[..., 0], O[..., 1] + s * D[..., 1]
 
 
 def chord_pieces(sh: Shape, lay: RingLayout, dv, ring, e_lo: float):
@@ -386,8 +387,8 @@ def piece_entry(sh, lay, seg, O, D, P0, P1, s_a, s_b, rest_x, rest_y, phase, v_e
     lo, hi = np.maximum(s_a, z0), np.minimum(s_b, z1)
     c0x, c0y = fibers.fiber_center_at(sh, rest_x, rest_y, P0[0], ring, phase)
     c1x, c1y = fibers.fiber_center_at(sh, rest_x, rest_y, P1[0], ring, phase)
-    q0x, q0y = P0[3] - c0x, P0[4] - c0y
-    q1x, q1y = P1[3] - c1x, P1[4] - c1y
+    q0x, q0y = P0[1] - c0x, P0[2] - c0y
+    q1x, q1y = P1[1] - c1x, P1[2] - c1y
     length = s_b - s_a
     safe = np.where(length > 0, length, 1.0)
     dqx = np.where(length > 0, (q1x - q0x) / safe, 0.0)
@@ -462,8 +463,8 @@ def shaped_nearest_segment(sh: Shape, lay: RingLayout, seg: Segment, ur: UnitRay
                     r, a, b, Or, Dr, e_lo_arc = r[keep], a[keep], b[keep], Or[keep], Dr[keep], e_lo_arc[keep]
                     if not len(r):
                         continue
-                Pa = ring_point(sh, seg, Or, Dr, a, i)
-                Pb = ring_point(sh, seg, Or, Dr, b, i)
+                Pa = ring_point(seg, Or, Dr, a)
+                Pb = ring_point(seg, Or, Dr, b)
                 n = chord_pieces(sh, lay, np.abs(Pb[0] - Pa[0]), i, e_lo_arc)
                 step = (b - a) / n
                 s = np.full((len(r), len(j)), np.inf)
@@ -471,7 +472,7 @@ def shaped_nearest_segment(sh: Shape, lay: RingLayout, seg: Segment, ur: UnitRay
                 for k in range(int(n.max())):
                     last = k == n - 1
                     s_k1 = np.where(last, b, a + (k + 1) * step)
-                    P1 = tuple(np.where(last, x, y) for x, y in zip(Pb, ring_point(sh, seg, Or, Dr, s_k1, i)))
+                    P1 = tuple(np.where(last, x, y) for x, y in zip(Pb, ring_point(seg, Or, Dr, s_k1)))
                     col = lambda x: x[:, None]  # noqa: E731
                     hit = piece_entry(sh, lay, seg, Or[:, None, :], Dr[:, None, :], tuple(map(col, P0)),
                                       tuple(map(col, P1)), col(s_k), col(s_k1), rest_x[None], rest_y[None],
